@@ -1,0 +1,43 @@
+"""Command-line interface: ``diffguide <command> ...``.
+
+Each command lives in its own module exposing ``add_parser(subparsers)`` (which registers the
+sub-command and sets ``func``). The CLI enables float64 before anything is computed.
+"""
+
+import argparse
+import importlib
+import importlib.util
+import sys
+
+_COMMANDS = ("stiffness", "table")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="diffguide",
+        description="Linear guideways under an elastic machine-tool table: rail errors -> "
+        "joint kinematic errors (SI inside; mm, µm, µm/m at the edges).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in _COMMANDS:
+        if importlib.util.find_spec(f"diffguide.cli.{name}") is None:  # not built yet
+            continue
+        importlib.import_module(f"diffguide.cli.{name}").add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    from .._precision import enable_x64
+
+    enable_x64()
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, OSError) as exc:  # bad input: one line, no traceback
+        print(f"diffguide {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

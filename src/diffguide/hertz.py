@@ -1,0 +1,152 @@
+r"""Hertz point contact of two elastic bodies with aligned principal curvatures, exact solution.
+
+For relative curvature sums :math:`A ≤ B` (:math:`A = 1/(2R_a)`, :math:`B = 1/(2R_b)`, with
+:math:`1/R = 1/R_1 + 1/R_2` in each principal plane, concave surfaces negative) and the contact
+modulus :math:`1/E^* = (1-ν_1^2)/E_1 + (1-ν_2^2)/E_2`, the contact ellipse has semi-axes
+:math:`a ≥ b` (``a`` along the direction of ``A``), eccentricity :math:`e^2 = 1 - b^2/a^2`, and
+(Johnson, *Contact Mechanics*, eqs. 3.68–3.72, 4.21):
+
+.. math::
+
+    \frac{B}{A} = \frac{E(e)/(1-e^2) - K(e)}{K(e) - E(e)},\qquad
+    a^3 = \frac{3F\,(K-E)}{2π E^* A\,e^2},\qquad
+    δ = \frac{3 F K(e)}{2π a E^*},
+
+with ``K`` and ``E`` the complete elliptic integrals of the first and second kind. Hence
+``δ = c·F^(2/3)``. ``K`` and ``E`` are computed by the arithmetic–geometric mean, ``e`` by
+bisection on ``ln(a/b)`` with one Newton step on top, so the result is differentiable in the
+geometry (implicit function theorem) as well as in the force.
+"""
+
+import jax
+import jax.numpy as jnp
+
+from ._types import Array, Float, ScalarLike
+
+_AGM_STEPS = 12  # quadratic convergence: 12 steps reach float64 for b/a down to ~1e-30
+_BISECT_STEPS = 80
+
+
+def elliptic_ke(ratio: Float[Array, "..."]) -> tuple[Float[Array, "..."], Float[Array, "..."]]:
+    r"""Complete elliptic integrals ``K(m)``, ``E(m)`` for ``m = 1 − ratio²``, ``0 < ratio ≤ 1``.
+
+    ``ratio = b/a = √(1−m)`` is the complementary modulus, which keeps full accuracy for the very
+    elongated ellipses of conforming grooves (``m → 1``). Gauss's AGM:
+    :math:`K = π / (2\,\mathrm{AGM}(1, \sqrt{1-m}))`,
+    :math:`E = K\,(1 - \sum_n 2^{n-1} c_n^2)` with :math:`c_0^2 = m`.
+    """
+    a = jnp.ones_like(ratio)
+    b = ratio
+    total = 0.5 * (1.0 - ratio**2)  # 2^{-1} c_0^2
+    weight = 0.5
+    for _ in range(_AGM_STEPS):
+        c = 0.5 * (a - b)
+        a, b = 0.5 * (a + b), jnp.sqrt(a * b)
+        weight = weight * 2.0
+        total = total + weight * c**2
+    K = jnp.pi / (2.0 * a)
+    return K, K * (1.0 - total)
+
+
+def _k_minus_e_over_m(ratio):
+    """``(K − E)/m`` and ``K`` for ``m = 1 − ratio²``, with the circular limit π/4, π/2."""
+    near_circle = ratio > 1.0 - 1e-6
+    safe = jnp.where(near_circle, 0.5, ratio)
+    K, E = elliptic_ke(safe)
+    m = 1.0 - safe**2
+    general = (K - E) / m
+    # series about m = 0: K = π/2 (1 + m/4), (K − E)/m = π/4 (1 + 3m/8)
+    m_true = 1.0 - ratio**2
+    circle_kme = jnp.pi / 4 * (1 + 3 * m_true / 8)
+    circle_K = jnp.pi / 2 * (1 + m_true / 4)
+    return jnp.where(near_circle, circle_kme, general), jnp.where(near_circle, circle_K, K)
+
+
+def _curvature_ratio(log_ab):
+    """``B/A`` as a function of ``t = ln(a/b)`` (increasing from 1 at t = 0)."""
+    ratio = jnp.exp(-log_ab)  # b/a
+    kme, K = _k_minus_e_over_m(ratio)
+    m = 1.0 - ratio**2
+    E = K - kme * m
+    # (E/(1-m) - K)/(K - E) = (E/ratio² - K)/(kme·m)
+    return (E / ratio**2 - K) / (kme * m)
+
+
+def ellipticity(curvature_ratio: ScalarLike) -> Float[Array, ""]:
+    """``ln(a/b)`` of the contact ellipse for a curvature ratio ``B/A ≥ 1``.
+
+    Bisection on ``t = ln(a/b) ∈ [0, 40]`` for the value, then one Newton step written so that
+    its derivative is the implicit-function derivative ``dt/d(B/A) = 1/g'(t)``.
+    """
+    target = jnp.asarray(curvature_ratio, dtype=float)
+    lo = jnp.zeros_like(target)
+    hi = jnp.full_like(target, 40.0)
+    target_c = jax.lax.stop_gradient(target)
+
+    def body(_, bounds):
+        lo, hi = bounds
+        mid = 0.5 * (lo + hi)
+        above = _curvature_ratio(jnp.maximum(mid, 1e-7)) > target_c
+        return jnp.where(above, lo, mid), jnp.where(above, mid, hi)
+
+    lo, hi = jax.lax.fori_loop(0, _BISECT_STEPS, body, (lo, hi))
+    t0 = jax.lax.stop_gradient(jnp.maximum(0.5 * (lo + hi), 1e-7))
+    g, dg = jax.jvp(_curvature_ratio, (t0,), (jnp.ones_like(t0),))
+    t = t0 - (g - target) / dg
+    return jnp.where(target <= 1.0 + 1e-12, 0.0, t)
+
+
+def point_contact(
+    force: ScalarLike, A: ScalarLike, B: ScalarLike, E_star: ScalarLike
+) -> dict[str, Float[Array, ""]]:
+    """Hertz elliptical point contact.
+
+    Arguments:
+        force: normal force (N), ≥ 0.
+        A, B: relative curvature sums (1/m), ``0 < A ≤ B`` (``A = B = 1/(2R)`` for a sphere of
+            radius ``R`` on a flat).
+        E_star: contact modulus (Pa).
+
+    Returns:
+        dict with ``approach`` (m), ``a``, ``b`` (semi-axes, m; ``a`` along the direction of
+        ``A``), ``p0`` (peak pressure, Pa).
+    """
+    force = jnp.asarray(force, dtype=float)
+    t = ellipticity(jnp.asarray(B) / jnp.asarray(A))
+    ratio = jnp.exp(-t)
+    kme, K = _k_minus_e_over_m(ratio)
+    a = (3.0 * force * kme / (2.0 * jnp.pi * E_star * A)) ** (1.0 / 3.0)
+    b = a * ratio
+    delta = 3.0 * force * K / (2.0 * jnp.pi * a * E_star)
+    p0 = 3.0 * force / (2.0 * jnp.pi * a * b)
+    return {"approach": delta, "a": a, "b": b, "p0": p0}
+
+
+def ball_in_groove_compliance(d, D, E, nu) -> Float[Array, ""]:
+    """``c₁`` (m / N^(2/3)) with ``δ = c₁·F^(2/3)`` for one ball–groove contact.
+
+    Ball of diameter ``d`` (m) in a straight groove of diameter ``D > d`` (m), same material
+    (``E`` in Pa, ``nu``) on both sides: ``E* = E / (2(1 − ν²))``, ``B = 1/d`` (rolling
+    direction), ``A = 1/d − 1/D`` (across the groove).
+    """
+    E_star = E / (2.0 * (1.0 - nu**2))
+    A = 1.0 / d - 1.0 / D
+    B = 1.0 / d
+    return point_contact(1.0, A, B, E_star)["approach"]
+
+
+def hamrock_brewe(force, A, B, E_star) -> dict[str, Float[Array, ""]]:
+    """Hamrock–Brewe (1983) approximation of :func:`point_contact`, for comparison.
+
+    ``k = a/b ≈ α^(2/π)``, ``E ≈ 1 + 0.5968/α``, ``K ≈ π/2 + (π/2 − 1) ln α`` with ``α = B/A``;
+    ``δ = 𝒦 (9/(2𝓔 R)) ^(1/3) (F/(π k E'))^(2/3)`` in their notation (``E' = 2E*``,
+    ``1/R = 2(A + B)``).
+    """
+    alpha = jnp.asarray(B) / jnp.asarray(A)
+    k = alpha ** (2.0 / jnp.pi)
+    Ee = 1.0 + 0.5968 / alpha
+    Ke = jnp.pi / 2 + (jnp.pi / 2 - 1.0) * jnp.log(alpha)
+    R = 1.0 / (2.0 * (A + B))
+    E_prime = 2.0 * E_star
+    delta = Ke * (9.0 / (2.0 * Ee * R) * (force / (jnp.pi * k * E_prime)) ** 2) ** (1.0 / 3.0)
+    return {"approach": delta}

@@ -1,0 +1,27 @@
+"""Figures for one carriage: the static characteristic (Majda 2012, Fig. 3)."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def plot_static_characteristic(curves: dict, title: str = ""):
+    """Deflection (µm) against load (kN), one line per direction.
+
+    Arguments:
+        curves: ``{direction: (loads_N, deflections_um)}``.
+    Returns:
+        the matplotlib ``Figure``.
+    """
+    fig, ax = plt.subplots(figsize=(6, 4.2), constrained_layout=True)
+    styles = {"down": "-", "up": "--", "lateral": ":"}
+    for name, (loads, defl) in curves.items():
+        ax.plot(loads / 1e3, defl, styles.get(name, "-"), lw=2, label=name)
+    ax.set_xlabel("load (kN)")
+    ax.set_ylabel("deflection along the load (µm)")
+    ax.grid(alpha=0.3)
+    ax.legend(title="load direction")
+    if title:
+        ax.set_title(title)
+    return fig
