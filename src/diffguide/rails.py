@@ -12,6 +12,7 @@ import abc
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from ._types import Array, Float, ScalarLike
 
@@ -83,3 +84,122 @@ class PaperPolynomialRail(AbstractRailProfile):
     def __call__(self, s):
         s = jnp.asarray(s, dtype=float)
         return _in_plane(0.5 * self.delta * (s + s**2), self.plane)
+
+
+def bspline_basis(u: Float[Array, "..."], n_coeffs: int) -> tuple[Array, Array]:
+    """Uniform cubic B-spline basis at knot-space coordinates ``u`` (segment ``i`` is ``[i, i+1)``).
+
+    Returns ``(index, weights)``: the first of the four coefficients that act at ``u`` and their
+    weights, shapes ``(...,)`` and ``(..., 4)``. Outside ``[0, n_coeffs − 3]`` the end segment's
+    cubic is continued (smooth extrapolation).
+    """
+    n_seg = n_coeffs - 3
+    i = jnp.clip(jnp.floor(u), 0, n_seg - 1).astype(int)
+    t = u - i
+    w = jnp.stack(
+        [
+            (1 - t) ** 3 / 6,
+            (3 * t**3 - 6 * t**2 + 4) / 6,
+            (-3 * t**3 + 3 * t**2 + 3 * t + 1) / 6,
+            t**3 / 6,
+        ],
+        axis=-1,
+    )
+    return i, w
+
+
+def bspline_matrix(s, start: float, spacing: float, n_coeffs: int) -> np.ndarray:
+    """Dense collocation matrix ``B[i, k]`` of the uniform cubic B-spline at points ``s`` (m)."""
+    u = (np.asarray(s, dtype=float) - start) / spacing
+    idx, w = bspline_basis(jnp.asarray(u), n_coeffs)
+    B = np.zeros((len(u), n_coeffs))
+    for k in range(4):
+        np.add.at(B, (np.arange(len(u)), np.asarray(idx) + k), np.asarray(w[:, k]))
+    return B
+
+
+class SplineRail(AbstractRailProfile):
+    r"""Rail deviation as uniform cubic B-splines in both planes (C² smooth).
+
+    :math:`e(s) = \sum_k c_k\,B_3((s - s_0)/h - k + 1)` over knots ``s₀ + i·h``, ``i = 0 … n−3``
+    (``n`` coefficients per plane). The coefficients (m) are the natural unknowns of the
+    identification and differentiable.
+
+    Arguments:
+        start: first knot ``s₀`` (m). spacing: knot spacing ``h`` (m), > 0.
+        vertical: coefficients of ``e_z`` (m), shape ``(n,)``, ``n ≥ 4``.
+        horizontal: coefficients of ``e_y`` (m), shape ``(n,)``.
+    """
+
+    start: float = eqx.field(static=True)
+    spacing: float = eqx.field(static=True)
+    vertical: Float[Array, " n"]
+    horizontal: Float[Array, " n"]
+
+    def __check_init__(self):
+        if not self.spacing > 0:
+            raise ValueError(f"spacing (knot spacing) must be > 0 m, got {self.spacing!r}")
+        n = np.shape(self.vertical)
+        if len(n) != 1 or n[0] < 4 or np.shape(self.horizontal) != n:
+            raise ValueError(
+                "vertical and horizontal must be 1-D coefficient arrays of the same length >= 4, "
+                f"got shapes {n} and {np.shape(self.horizontal)}"
+            )
+
+    @property
+    def n_coeffs(self) -> int:
+        return np.shape(self.vertical)[0]
+
+    @property
+    def end(self) -> float:
+        """Last knot (m)."""
+        return self.start + (self.n_coeffs - 3) * self.spacing
+
+    def __call__(self, s):
+        s = jnp.asarray(s, dtype=float)
+        idx, w = bspline_basis((s - self.start) / self.spacing, self.n_coeffs)
+        take = lambda c: jnp.sum(  # noqa: E731
+            jnp.stack([jnp.asarray(c)[idx + k] for k in range(4)], axis=-1) * w, axis=-1
+        )
+        return take(self.horizontal), take(self.vertical)
+
+    @classmethod
+    def fit(
+        cls,
+        s,
+        vertical,
+        horizontal,
+        *,
+        spacing: float | None = None,
+        start: float | None = None,
+        end: float | None = None,
+        smoothing: float = 1e-9,
+    ) -> "SplineRail":
+        """Spline through sampled deviations (m at ``s`` in m), by least squares.
+
+        The knot spacing defaults to the median sample spacing (the spline then interpolates
+        the samples); a tiny second-difference penalty (``smoothing``, relative) makes the
+        coefficients unique where samples are sparse. ``start``/``end`` extend the knot range
+        beyond the samples (the spline continues the end cubic there).
+        """
+        s = np.asarray(s, dtype=float)
+        order = np.argsort(s)
+        s = s[order]
+        if spacing is None:
+            steps = np.diff(s)
+            steps = steps[steps > 0]
+            if steps.size == 0:
+                raise ValueError("at least two distinct positions s are needed to fit a rail")
+            spacing = float(np.median(steps))
+        lo = s[0] if start is None else min(start, s[0])
+        hi = s[-1] if end is None else max(end, s[-1])
+        n_seg = max(int(np.ceil((hi - lo) / spacing - 1e-9)), 1)
+        n = n_seg + 3
+        B = bspline_matrix(s, lo, spacing, n)
+        D = np.diff(np.eye(n), 2, axis=0)
+        lam = smoothing * np.trace(B.T @ B) / max(np.trace(D.T @ D), 1.0)
+        A = B.T @ B + lam * D.T @ D
+        coeffs = [
+            np.linalg.solve(A, B.T @ np.asarray(v, dtype=float)[order]) for v in (vertical, horizontal)
+        ]
+        return cls(float(lo), float(spacing), jnp.asarray(coeffs[0]), jnp.asarray(coeffs[1]))

@@ -1,0 +1,261 @@
+"""Static condensation of the table onto rigid patches (carriages, screw nut) and control points.
+
+Interfaces. Each :class:`RigidPatch` has a reference point ``p_ref`` (for a carriage: the centre
+of its top face, on the plate underside ``z = -t/2``) and a rectangular footprint; every plate
+node in the footprint is a slave of the reference point (master–slave, exact rigid tie):
+
+    u_node = u_ref + θ_ref × (p_node - p_ref),     θ_node = θ_ref.
+
+The interface DOF ``u_b`` are the 6 DOF ``(ux, uy, uz, rx, ry, rz)`` of each patch reference
+point, patches in the caller's order: ``u_b[6 p + k]`` (m, rad); m = 6 n_patches.
+
+With the remaining (interior) node DOF ``u_i`` and the table's own loads (gravity, surface
+loads), the static equations ``[[K_ii, K_ib], [K_bi, K_bb]] [u_i, u_b] = [f_i, f_b + F_b]``
+condense to
+
+    K u_b = f + F_b,   K = K_bb - K_bi K_ii⁻¹ K_ib,   f = f_b - K_bi K_ii⁻¹ f_i,
+
+where ``F_b`` (N, N·m) is the wrench the carriages / the nut apply *to the table* at each
+reference point (moments about ``p_ref``). ``K`` is the free-floating table's: symmetric, positive
+semi-definite with the 6 rigid-body modes in its null space. The interior follows as
+``u_i = K_ii⁻¹ (f_i - K_ib u_b)``.
+
+Control points P = (x, y) on the top surface: the motion of the material point at the top
+surface, ``u_P = Σ N_k (u_k + θ_k × o)`` with ``o = (t/2) n`` (n the element normal, +Z), and the
+rotation ``θ_P = Σ N_k θ_k`` (bilinear shell shape functions ``N_k`` of the quad containing P;
+exact nodal values when P is on a node). ``[u_P, θ_P] = R u_b + r0`` with ``r0`` the part due to
+the table's own loads with the interfaces held at zero.
+"""
+
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._precision import require_x64
+from .._types import Array, Float, ScalarLike
+from .assemble import PlateSection, _element_arrays, as_arrays
+from .mesh import TableMesh
+from .shell import shell_frame, shell_natural_coords, shell_shape
+
+
+class RigidPatch(eqx.Module):
+    """A rigid interface: a footprint of plate nodes tied to one reference point.
+
+    Args:
+        x, y: reference point and footprint centre (m).
+        half_x, half_y: footprint half-lengths along X and Y (m), > 0.
+        z: reference point height (m); ``None`` (default) = the plate underside ``-t/2``
+            (follows the thickness when differentiating).
+        name: label.
+    """
+
+    x: float = eqx.field(static=True)
+    y: float = eqx.field(static=True)
+    half_x: float = eqx.field(static=True)
+    half_y: float = eqx.field(static=True)
+    z: float | None = eqx.field(static=True, default=None)
+    name: str = eqx.field(static=True, default="")
+
+    def __check_init__(self):
+        for k in ("half_x", "half_y"):
+            if not getattr(self, k) > 0:
+                raise ValueError(f"RigidPatch.{k} must be > 0 m, got {getattr(self, k)}")
+
+    @property
+    def box(self) -> tuple[float, float, float, float]:
+        x, y, hx, hy = self.x, self.y, self.half_x, self.half_y
+        return (x - hx, x + hx, y - hy, y + hy)
+
+
+def patch_lines(patches: Sequence[RigidPatch]) -> tuple[list[float], list[float]]:
+    """Grid lines (x values, y values; m) at the footprint edges and centres of ``patches``."""
+    lx, ly = [], []
+    for p in patches:
+        x0, x1, y0, y1 = p.box
+        lx += [x0, p.x, x1]
+        ly += [y0, p.y, y1]
+    return lx, ly
+
+
+class CondensedTable(eqx.Module):
+    """The table condensed onto its interfaces (see the module docstring for the equations).
+
+    Attributes:
+        K: (m, m) condensed stiffness (N/m, N/rad, N·m/rad), free-floating (6 rigid modes).
+        f: (m,) condensed table loads (N, N·m) at the interface DOF.
+        R: (6 n_points, m) control-point motion per interface DOF; rows ``6 j + k``, k in
+            (ux, uy, uz, rx, ry, rz) of point j.
+        r0: (6 n_points,) control-point motion due to the table loads with ``u_b = 0``.
+        node_modes: (n_nodes, 6, m) node DOF per interface DOF (mid-surface nodes).
+        node_u0: (n_nodes, 6) node DOF due to the table loads with ``u_b = 0``.
+        ref_points: (n_patches, 3) reference points (m).
+    """
+
+    K: Float[Array, "m m"]
+    f: Float[Array, " m"]
+    R: Float[Array, "np6 m"]
+    r0: Float[Array, " np6"]
+    node_modes: Float[Array, "n 6 m"]
+    node_u0: Float[Array, "n 6"]
+    ref_points: Float[Array, "p 3"]
+
+    def interface_loads(self, u_b: Float[Array, " m"]) -> Float[Array, " m"]:
+        """Wrench applied to the table at the reference points, ``F_b = K u_b - f`` (N, N·m)."""
+        return self.K @ u_b - self.f
+
+    def point_motion(self, u_b: Float[Array, " m"]) -> Float[Array, "n_points 6"]:
+        """Control-point motion ``R u_b + r0`` as (n_points, 6): m and rad."""
+        return (self.R @ u_b + self.r0).reshape(-1, 6)
+
+    def node_displacements(self, u_b: Float[Array, " m"]) -> Float[Array, "n 6"]:
+        """Node DOF (n_nodes, 6) for interface DOF ``u_b``: m and rad."""
+        return self.node_modes @ u_b + self.node_u0
+
+
+def _topology(mesh: TableMesh, patches: Sequence[RigidPatch], points: Sequence):
+    """Static (NumPy) maps: slave patch of each node (-1: interior), node blocks, point quads."""
+    if len(patches) == 0:
+        raise ValueError("patches must hold at least one RigidPatch (the table would be free)")
+    xs, ys = mesh.xs, mesh.ys
+    tol = 1e-9
+    owner = np.full(mesh.n_nodes, -1)
+    for k, p in enumerate(patches):
+        x0, x1, y0, y1 = p.box
+        if x0 < xs[0] - tol or x1 > xs[-1] + tol or y0 < ys[0] - tol or y1 > ys[-1] + tol:
+            raise ValueError(
+                f"patch {k} ({p.name or 'unnamed'}) footprint [{x0}, {x1}] × [{y0}, {y1}] m is "
+                f"outside the table [{xs[0]}, {xs[-1]}] × [{ys[0]}, {ys[-1]}] m"
+            )
+        ids = mesh.nodes_in_box(x0, x1, y0, y1)
+        if len(ids) == 0:
+            raise ValueError(
+                f"patch {k} ({p.name or 'unnamed'}) footprint contains no node; add grid lines "
+                "at its edges (see patch_lines)"
+            )
+        if np.any(owner[ids] >= 0):
+            raise ValueError(f"patch {k} ({p.name or 'unnamed'}) overlaps another patch")
+        owner[ids] = k
+    interior = np.flatnonzero(owner < 0)
+    n_free = len(interior)
+    block = np.empty(mesh.n_nodes, dtype=np.int64)
+    block[interior] = np.arange(n_free)
+    block[owner >= 0] = n_free + owner[owner >= 0]
+    quads = np.array([mesh.locate(float(x), float(y)) for x, y in points], dtype=np.int64)
+    return owner, block, n_free, quads
+
+
+def _skew(v):
+    """(..., 3) -> (..., 3, 3) with skew(v) @ w = v × w."""
+    z = jnp.zeros_like(v[..., 0])
+    return jnp.stack(
+        [
+            jnp.stack([z, -v[..., 2], v[..., 1]], -1),
+            jnp.stack([v[..., 2], z, -v[..., 0]], -1),
+            jnp.stack([-v[..., 1], v[..., 0], z], -1),
+        ],
+        -2,
+    )
+
+
+def _rigid(d):
+    """(..., 3) offsets -> (..., 6, 6) maps [u; θ] -> [u + θ × d; θ]."""
+    eye = jnp.broadcast_to(jnp.eye(6, dtype=d.dtype), d.shape[:-1] + (6, 6))
+    return eye.at[..., :3, 3:].set(-_skew(d))
+
+
+def condense(
+    mesh: TableMesh,
+    plate: PlateSection,
+    patches: Sequence[RigidPatch],
+    points: Sequence[tuple[float, float]] = (),
+    *,
+    nodes: Float[Array, "n 3"] | None = None,
+    gravity: ScalarLike = 9.81,
+    surface_load: Float[Array, "3"] | None = None,
+) -> CondensedTable:
+    """Condense the table onto rigid patches and recover control points (dense Cholesky).
+
+    Args:
+        mesh: table mesh; footprints and points must lie on the table.
+        plate: plate section (thickness, material).
+        patches: the rigid interfaces, in the order of ``u_b``.
+        points: control points (x, y) in m on the top surface (z = +t/2).
+        nodes: node coordinates (m) replacing ``mesh.nodes`` (e.g. traced); the footprint
+            membership and point elements are decided on ``mesh.nodes``.
+        gravity: g (m/s²) along -Z; 0 for no self-weight.
+        surface_load: uniform load on the plate (Pa, global components).
+
+    Returns:
+        :class:`CondensedTable`. Differentiable w.r.t. thickness, material, rib sizes, ``nodes``.
+    """
+    require_x64("diffguide.fe.condense")
+    owner, block, n_free, quads = _topology(mesh, patches, points)
+    mesh, plate, gravity = as_arrays((mesh, plate, gravity))
+    sl = jnp.zeros(3) if surface_load is None else jnp.asarray(surface_load, dtype=float)
+    pxyz = np.array([[p.x, p.y, np.nan if p.z is None else p.z] for p in patches])
+    pts = np.array(points, dtype=float).reshape(-1, 2)
+    return _condense(mesh, plate, nodes, gravity, sl, owner, block, n_free, quads, pxyz, pts)
+
+
+@eqx.filter_jit
+def _condense(mesh, plate, nodes, gravity, sl, owner, block, n_free, quads, pxyz, pts):
+    xyz = jnp.asarray(mesh.nodes if nodes is None else nodes, dtype=float)
+    t = jnp.asarray(plate.thickness, dtype=float)
+    n_patch = pxyz.shape[0]
+    m = 6 * n_patch
+    n_i = 6 * n_free
+    n_r = n_i + m
+    ref = jnp.where(jnp.isnan(pxyz), -0.5 * t, pxyz)
+    slave = owner >= 0
+    d = xyz - ref[jnp.where(slave, owner, 0)]
+    A = jnp.where(slave[:, None, None], _rigid(d), jnp.eye(6))  # node DOF = A @ block DOF
+
+    K = jnp.zeros((n_r, n_r))
+    f = jnp.zeros(n_r)
+    for ea in _element_arrays(mesh, plate, nodes, gravity, sl):
+        k = ea.conn.shape[1]
+        Ae = A[ea.conn]  # (n_el, k, 6, 6)
+        Ke = ea.K.reshape(-1, k, 6, k, 6)
+        Ke = jnp.einsum("eiac,eiajb,ejbd->eicjd", Ae, Ke, Ae).reshape(-1, 6 * k, 6 * k)
+        fe = jnp.einsum("eiac,eia->eic", Ae, ea.f.reshape(-1, k, 6)).reshape(-1, 6 * k)
+        dofs = (6 * block[ea.conn][:, :, None] + jnp.arange(6)).reshape(-1, 6 * k)
+        K = K.at[dofs[:, :, None], dofs[:, None, :]].add(Ke)
+        f = f.at[dofs].add(fe)
+
+    Kii, Kib, Kbb = K[:n_i, :n_i], K[:n_i, n_i:], K[n_i:, n_i:]
+    cf = jax.scipy.linalg.cho_factor(Kii)
+    X = jax.scipy.linalg.cho_solve(cf, jnp.concatenate([Kib, f[:n_i, None]], axis=1))
+    Kc = Kbb - Kib.T @ X[:, :m]
+    Kc = 0.5 * (Kc + Kc.T)
+    fc = f[n_i:] - Kib.T @ X[:, m]
+
+    # generalized DOF per interface DOF: interior -X, interface identity
+    Q = jnp.concatenate([-X[:, :m], jnp.eye(m)], axis=0)  # (n_r, m)
+    q0 = jnp.concatenate([X[:, m], jnp.zeros(m)])
+    Qb = Q.reshape(-1, 6, m)[block]  # (n_nodes, 6, m)
+    q0b = q0.reshape(-1, 6)[block]
+    node_modes = jnp.einsum("nab,nbm->nam", A, Qb)
+    node_u0 = jnp.einsum("nab,nb->na", A, q0b)
+
+    # control points: bilinear interpolation in the containing quad + offset to the top surface
+    qn = jnp.asarray(mesh.quads)[quads]  # (n_pts, 4)
+    exyz = xyz[qn]
+
+    def point_map(ex, p):
+        s = shell_natural_coords(ex, p)
+        N = shell_shape(s[0], s[1])
+        R, _ = shell_frame(ex)
+        return N[:, None, None] * _rigid(0.5 * t * R[2])  # (4, 6, 6)
+
+    if pts.shape[0] > 0:
+        W = jax.vmap(point_map)(exyz, jnp.asarray(pts))  # (n_pts, 4, 6, 6)
+        Rm = jnp.einsum("pkab,pkbm->pam", W, node_modes[qn]).reshape(-1, m)
+        r0 = jnp.einsum("pkab,pkb->pa", W, node_u0[qn]).reshape(-1)
+    else:
+        Rm, r0 = jnp.zeros((0, m)), jnp.zeros(0)
+    return CondensedTable(
+        K=Kc, f=fc, R=Rm, r0=r0, node_modes=node_modes, node_u0=node_u0, ref_points=ref
+    )

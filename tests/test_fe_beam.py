@@ -1,0 +1,125 @@
+"""Timoshenko beam element and ribbed plate strip against closed-form beam theory."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from diffguide.fe.assemble import PlateSection, assemble, solve_fixed
+from diffguide.fe.beam import beam_stiffness, rect_section
+from diffguide.fe.materials import STEEL, Material
+from diffguide.fe.mesh import Rib, table_mesh
+
+E, NU = 210e9, 0.3
+G = E / (2 * (1 + NU))
+KAPPA = 5.0 / 6.0
+
+
+def _cantilever(direction, n_el, offset=None, width=0.03, depth=0.05, length=1.3):
+    """Global K of a straight cantilever of n_el elements along ``direction`` (unit)."""
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    xyz = np.outer(np.linspace(0, length, n_el + 1), d) + np.array([0.1, -0.2, 0.3])
+    s = rect_section(width, depth)
+    K = np.zeros((6 * (n_el + 1),) * 2)
+    for e in range(n_el):
+        Ke = beam_stiffness(
+            jnp.asarray(xyz[e : e + 2]), E, G, s["A"], s["Iy"], s["Iz"], s["J"], KAPPA,
+            None if offset is None else jnp.asarray(offset),
+        )
+        K[6 * e : 6 * e + 12, 6 * e : 6 * e + 12] += np.asarray(Ke)
+    return K, {k: float(v) for k, v in s.items()}
+
+
+def _tip(K, load):
+    n = K.shape[0]
+    f = np.zeros(n)
+    f[-6:] = load
+    u = np.zeros(n)
+    u[6:] = np.linalg.solve(K[6:, 6:], f[6:])
+    return u[-6:]
+
+
+@pytest.mark.parametrize("n_el", [1, 4])
+def test_cantilever_tip_deflection_timoshenko(n_el):
+    L, P = 1.3, 1234.0
+    K, s = _cantilever([1, 0, 0], n_el, length=L)
+    # vertical (about e2 = Y, I = w h³/12) and lateral (about e3 = Z, I = h w³/12)
+    uz = _tip(K, [0, 0, P, 0, 0, 0])[2]
+    uy = _tip(K, [0, P, 0, 0, 0, 0])[1]
+    ref_z = P * L**3 / (3 * E * s["Iy"]) + P * L / (KAPPA * G * s["A"])
+    ref_y = P * L**3 / (3 * E * s["Iz"]) + P * L / (KAPPA * G * s["A"])
+    assert uz == pytest.approx(ref_z, rel=1e-8)
+    assert uy == pytest.approx(ref_y, rel=1e-8)
+    # axial P L / E A and torsion T L / G J
+    assert _tip(K, [P, 0, 0, 0, 0, 0])[0] == pytest.approx(P * L / (E * s["A"]), rel=1e-8)
+    assert _tip(K, [0, 0, 0, P, 0, 0])[3] == pytest.approx(P * L / (G * s["J"]), rel=1e-8)
+    # slope at the tip of a cantilever under a tip moment: M L / E I
+    assert _tip(K, [0, 0, 0, 0, P, 0])[4] == pytest.approx(P * L / (E * s["Iy"]), rel=1e-8)
+
+
+def test_cantilever_rotated_in_space():
+    """A beam along an arbitrary direction: deflection along its local e3 as for a beam on X."""
+    d = np.array([0.3, -0.5, 0.81])
+    d /= np.linalg.norm(d)
+    L, P = 1.3, 500.0
+    K, s = _cantilever(d, 3, length=L)
+    e2 = np.cross([0, 0, 1], d)
+    e2 /= np.linalg.norm(e2)
+    e3 = np.cross(d, e2)
+    u = _tip(K, np.concatenate([P * e3, np.zeros(3)]))
+    ref = P * L**3 / (3 * E * s["Iy"]) + P * L / (KAPPA * G * s["A"])
+    assert u[:3] @ e3 == pytest.approx(ref, rel=1e-8)
+    assert np.linalg.norm(u[:3] - (u[:3] @ e3) * e3) < 1e-10 * ref
+
+
+def test_offset_beam_axial_load_bends():
+    """Axial tip force P at the nodes, beam axis a distance e below them (eccentric beam).
+
+    On the axis the force comes with the moment M_y = (node - axis) × F = e P: tip rotation
+    M L / E I, tip deflection -M L² / 2 E I, and the node (e above the axis) moves axially by
+    P L / E A + e · M L / E I.
+    """
+    L, P, e = 1.3, 1000.0, 0.04
+    K, s = _cantilever([1, 0, 0], 4, offset=[0, 0, -e], length=L)
+    u = _tip(K, [P, 0, 0, 0, 0, 0])
+    EI = E * s["Iy"]
+    # the force P at the node acts on the axis with the moment (node - axis) × F = (0,0,e)×(P,0,0)
+    My = e * P
+    assert u[4] == pytest.approx(My * L / EI, rel=1e-8)
+    assert u[2] == pytest.approx(-My * L**2 / (2 * EI), rel=1e-8)
+    assert u[0] == pytest.approx(P * L / (E * s["A"]) + e * My * L / EI, rel=1e-8)
+
+
+def test_beam_rigid_body_modes_with_offset():
+    xyz = jnp.array([[0.1, 0.2, 0.0], [0.5, 0.4, 0.1]])
+    s = rect_section(0.02, 0.07)
+    K = np.asarray(beam_stiffness(xyz, E, G, s["A"], s["Iy"], s["Iz"], s["J"], KAPPA,
+                                  jnp.array([0.01, -0.02, -0.05])))
+    ev = np.linalg.eigvalsh(K)
+    assert np.sum(np.abs(ev) < 1e-9 * ev.max()) == 6
+    assert ev.min() > -1e-9 * ev.max()
+
+
+def test_plate_strip_with_offset_rib_matches_t_section():
+    """Cantilevered plate strip (b × t) with a rib (w × h) under it vs the T-section beam.
+
+    δ = P L³ / 3 E I_T + P L / κ G A_web, I_T about the composite section's neutral axis.
+    """
+    L, b, t, w, h, P = 2.0, 0.2, 0.02, 0.04, 0.12, 1000.0
+    mat = Material(E=E, nu=NU, rho=0.0)
+    mesh = table_mesh(L, b, 40, 4, origin=(0.0, -b / 2), ribs=[Rib("x", 0.0, w, h)])
+    K, f = assemble(mesh, PlateSection(t, mat))
+    tip = mesh.node_at(L, 0.0)
+    f = np.zeros(mesh.n_dof)
+    f[6 * tip + 2] = -P
+    root = np.flatnonzero(np.isclose(mesh.nodes[:, 0], 0.0))
+    fixed = (6 * root[:, None] + np.arange(6)).ravel()
+    u = np.asarray(solve_fixed(K, jnp.asarray(f), fixed)).reshape(-1, 6)
+    A1, A2, z2 = b * t, w * h, -(t + h) / 2
+    zc = A2 * z2 / (A1 + A2)
+    I = b * t**3 / 12 + A1 * zc**2 + w * h**3 / 12 + A2 * (z2 - zc) ** 2
+    ref = P * L**3 / (3 * E * I) + P * L / (KAPPA * G * A2)
+    assert -u[tip, 2] == pytest.approx(ref, rel=0.02)
+
+
+def test_steel_registry():
+    assert STEEL.E == 210e9 and STEEL.nu == 0.3 and STEEL.rho == 7850.0

@@ -1,0 +1,33 @@
+"""``diffguide table`` end to end, and the preset table against a hand estimate."""
+
+import csv
+
+import numpy as np
+import pytest
+
+from diffguide.cli import main
+
+
+def test_table_command_writes_plot_and_csv(tmp_path, capsys):
+    png, out = tmp_path / "table.png", tmp_path / "nodes.csv"
+    rc = main(["table", "--preset", "majda2012", "--nx", "10", "--ny", "5", "--plot", str(png),
+               "--out", str(out)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "max sag under gravity" in text and "µm" in text
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
+    rows = list(csv.DictReader(out.open()))
+    uz = np.array([float(r["uz_um"]) for r in rows])
+    sag = float(text.split("max sag under gravity:")[1].split("µm")[0])
+    assert sag == pytest.approx(-uz.min(), abs=1e-3)  # printed to 3 decimals
+    # order of magnitude: the 310 mm overhang beyond the carriages as a cantilever plate strip,
+    # w = q L⁴ / 8 D (q = ρ g t, D = E t³ / 12 (1 - ν²)) ≈ 2.3 µm; the table also rotates at the
+    # carriages, so the corner sag is larger but of the same order
+    q, L, D = 7200 * 9.81 * 0.06, 0.31, 110e9 * 0.06**3 / 12 / (1 - 0.26**2)
+    w_cant = q * L**4 / (8 * D) * 1e6
+    assert w_cant < sag < 3 * w_cant
+
+
+def test_table_command_rejects_bad_mesh(capsys):
+    assert main(["table", "--nx", "0"]) == 2
+    assert "--nx" in capsys.readouterr().err
