@@ -49,6 +49,7 @@ def majda2012_table(
     ribs: Sequence[Rib] = (),
     thickness: float | None = None,
     material: Material | None = None,
+    points: dict[str, tuple[float, float]] | None = None,
 ) -> TableModel:
     """The ``majda2012`` table (see module docstring).
 
@@ -58,6 +59,7 @@ def majda2012_table(
         ribs: optional ribs under the plate.
         thickness: plate thickness in m (default 0.06, the preset's equivalent thickness).
         material: plate material (default: the preset's cast iron, E 110 GPa, ν 0.26).
+        points: control points ``{name: (x, y)}`` on the top surface (m); default P1..P5.
 
     Returns:
         :class:`TableModel` with patches C11, C12 (rail 1, y < 0; x < 0 then x > 0), C21, C22
@@ -75,8 +77,9 @@ def majda2012_table(
     if nut:
         nx0, ny0 = L["nut_xy"]
         patches.append(RigidPatch(x=nx0, y=ny0, half_x=NUT_HALF, half_y=NUT_HALF, name="nut"))
-    names = tuple(MAJDA2012_POINTS)
-    points = tuple(tuple(map(float, MAJDA2012_POINTS[k])) for k in names)
+    chosen = MAJDA2012_POINTS if points is None else points
+    names = tuple(chosen)
+    points = tuple(tuple(map(float, chosen[k])) for k in names)
     lx, ly = patch_lines(patches)
     lx += [p[0] for p in points]
     ly += [p[1] for p in points]

@@ -1,0 +1,279 @@
+r"""The machine: a condensed elastic table on four carriages, two rails, the feed screw, gravity.
+
+Unknowns at each table position ``x``: the interface DOF ``u`` of the condensed table
+(:class:`~diffguide.fe.condense.CondensedTable`): 6 per carriage patch (the carriage is a rigid
+body bolted to its patch, so its pose *is* the patch's DOF) and 6 for the screw-nut patch. The
+total potential is convex (SPEC §2.3):
+
+.. math::
+
+    Π(u) = ½uᵀKu - fᵀu + \sum_{k}\sum_{j} φ\bigl(a_{kj}(u_k; x)\bigr) + ½ k_s(x)\,u_{nut,x}^2,
+
+with ``a_kj`` the element approaches of carriage ``k`` over the rail at ``s = x + X_k + ξ_j``
+(:meth:`~diffguide.guideway.Carriage.approaches`), ``k_s(x) = E A / (L₀ + x)`` the axial stiffness
+of the screw between its fixed bearing and the nut. Its stationary point is found with Newton and
+an Armijo line search, polished by optimistix (implicit derivatives; :mod:`diffguide._newton`),
+for all positions in one vmapped call.
+
+Rigid-table mode: the same machine with an infinitely stiff table, i.e. the interface DOF
+restricted to the six rigid-body motions of the table, ``u = Φ q`` (``Φ`` maps the table's
+translation and rotation at the origin to each patch): ``K → ΦᵀKΦ = 0``, ``f → Φᵀf`` (the weight
+and its moment), control points move rigidly and gravity sag is gone.
+"""
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from ._newton import solve_equilibrium
+from ._precision import require_x64
+from ._types import Array, Float, Int
+from .fe.condense import CondensedTable
+from .guideway import Carriage
+from .rails import AbstractRailProfile
+
+#: Unknowns in µm and µrad; residual forces in kN and moments in kN·(10 mm).
+DOF_SCALE = 1e-6
+_FORCE_SCALE = 1e3
+_MOMENT_SCALE = 1e3 * 1e-2
+
+
+def rigid_body_map(ref_points: Float[Array, "p 3"]) -> Float[Array, "6p 6"]:
+    """``Φ``: the motion ``(u, θ)`` of each reference point for a rigid motion ``(t, θ)`` of the
+    table at the origin, ``u = t + θ × p``."""
+    blocks = []
+    for p in ref_points:
+        x, y, z = p[0], p[1], p[2]
+        skew_p = jnp.array([[0.0, z, -y], [-z, 0.0, x], [y, -x, 0.0]])  # θ × p = −[p]× θ
+        top = jnp.concatenate([jnp.eye(3), skew_p], axis=1)
+        bottom = jnp.concatenate([jnp.zeros((3, 3)), jnp.eye(3)], axis=1)
+        blocks.append(jnp.concatenate([top, bottom], axis=0))
+    return jnp.concatenate(blocks, axis=0)
+
+
+class Machine(eqx.Module):
+    """A table on four carriages: everything the equilibrium needs, SI units.
+
+    Arguments:
+        table: the condensed elastic table; interface order: the carriage patches, then the nut.
+        carriage: the runner block (the same block at every carriage position).
+        carriage_x: ``X_k``, each carriage's X offset from the table centre (m).
+        carriage_rail: the rail (0 = rail 1, 1 = rail 2) of each carriage.
+        point_names: control-point names, in the order of ``table.R``'s rows.
+        points_xy: control points (x, y) on the table top, relative to its centre (m).
+        screw_EA: axial rigidity of the screw core, ``E·π d²/4`` (N).
+        screw_length_ref: free length of the screw from its fixed bearing to the nut at x = 0
+            (m); the free length at position ``x`` is ``screw_length_ref + x``.
+        rigid: infinitely stiff table (see the module docstring).
+    """
+
+    table: CondensedTable
+    carriage: Carriage
+    carriage_x: Float[Array, " k"]
+    carriage_rail: tuple[int, ...] = eqx.field(static=True)
+    point_names: tuple[str, ...] = eqx.field(static=True)
+    points_xy: Float[Array, "p 2"]
+    screw_EA: float | Float[Array, ""]
+    screw_length_ref: float | Float[Array, ""]
+    rigid: bool = eqx.field(static=True, default=False)
+
+    def __check_init__(self):
+        k = len(self.carriage_rail)
+        if np.shape(self.carriage_x) != (k,):
+            raise ValueError(
+                f"carriage_x must have one entry per carriage ({k}), got shape "
+                f"{np.shape(self.carriage_x)}"
+            )
+        if any(r not in (0, 1) for r in self.carriage_rail):
+            raise ValueError(f"carriage_rail entries must be 0 or 1, got {self.carriage_rail}")
+        m = np.shape(self.table.K)[0]
+        if m != 6 * (k + 1):
+            raise ValueError(
+                f"the table must have 6 interface DOF per carriage plus 6 for the nut "
+                f"({6 * (k + 1)}), got {m}"
+            )
+        if len(self.point_names) != np.shape(self.points_xy)[0]:
+            raise ValueError("point_names and points_xy must have the same length")
+
+    @property
+    def n_carriages(self) -> int:
+        return len(self.carriage_rail)
+
+    @property
+    def nut_dof(self) -> int:
+        """Index of the nut's ux in the interface DOF."""
+        return 6 * self.n_carriages
+
+    def with_rigid_table(self, rigid: bool = True) -> "Machine":
+        """The same machine with an infinitely stiff table (or back to the elastic one)."""
+        return dataclasses.replace(self, rigid=rigid)
+
+    def basis(self) -> Float[Array, "m d"]:
+        """``Φ``: interface DOF from the generalized DOF (identity, or the rigid-body map)."""
+        if self.rigid:
+            return rigid_body_map(self.table.ref_points)
+        return jnp.eye(self.table.K.shape[0])
+
+    def screw_stiffness(self, x: Float[Array, ""]) -> Float[Array, ""]:
+        """Axial stiffness of the screw at table position ``x`` (m): ``EA / (L₀ + x)`` (N/m)."""
+        return self.screw_EA / (self.screw_length_ref + x)
+
+    def rail_under_carriages(
+        self, x: Float[Array, ""], rails: tuple[AbstractRailProfile, AbstractRailProfile]
+    ) -> Float[Array, "k n 2"]:
+        """Rail deviation ``(e_y, e_z)`` (m) under every element of every carriage at ``x`` (m)."""
+        xi = jnp.asarray(self.carriage.xi, dtype=float)
+        out = []
+        for k, r in enumerate(self.carriage_rail):
+            ey, ez = rails[r](x + self.carriage_x[k] + xi)
+            out.append(jnp.stack([ey, ez], axis=-1))
+        return jnp.stack(out)
+
+
+def _split(u, n_carriages):
+    return u[: 6 * n_carriages].reshape(n_carriages, 6)
+
+
+def _contacts(machine: Machine, u, rail):
+    """Approaches (k, rows, n) of all carriages at interface DOF ``u`` (m, rad)."""
+    poses = _split(u, machine.n_carriages)
+    return jax.vmap(machine.carriage.approaches)(poses, rail)
+
+
+def _potential(y, args):
+    machine, K, f, Phi, ks, rail = args
+    u = Phi @ (y * DOF_SCALE)
+    a = _contacts(machine, u, rail)
+    nut = u[machine.nut_dof]
+    return 0.5 * u @ (K @ u) - f @ u + machine.carriage.energy(a) + 0.5 * ks * nut**2
+
+
+def _gradient_u(machine, K, f, ks, rail, u):
+    """∂Π/∂u (N, N·m) and the contact approaches."""
+    a = _contacts(machine, u, rail)
+    wrenches = jax.vmap(machine.carriage.wrench)(a)  # (k, 6), on the carriages = on the table
+    g = K @ u - f
+    g = g.at[: 6 * machine.n_carriages].add(-wrenches.reshape(-1))
+    g = g.at[machine.nut_dof].add(ks * u[machine.nut_dof])
+    return g, a
+
+
+def _grad_hess(y, args):
+    machine, K, f, Phi, ks, rail = args
+    u = Phi @ (y * DOF_SCALE)
+    g, a = _gradient_u(machine, K, f, ks, rail, u)
+    tangents = jax.vmap(machine.carriage.tangent)(a)  # (k, 6, 6) d(wrench)/d(pose)
+    blocks = [tangents[i] for i in range(machine.n_carriages)] + [jnp.zeros((6, 6))]
+    H = K - jax.scipy.linalg.block_diag(*blocks)
+    H = H.at[machine.nut_dof, machine.nut_dof].add(ks)
+    return Phi.T @ g * DOF_SCALE, Phi.T @ H @ Phi * DOF_SCALE**2
+
+
+def _residual(y, args):
+    machine, K, f, Phi, ks, rail = args
+    u = Phi @ (y * DOF_SCALE)
+    g, _ = _gradient_u(machine, K, f, ks, rail, u)
+    d = Phi.shape[1]
+    scale = jnp.tile(jnp.array([_FORCE_SCALE] * 3 + [_MOMENT_SCALE] * 3), d // 6)
+    return (Phi.T @ g) / scale
+
+
+class MachineState(eqx.Module):
+    """Equilibrium of the machine at a batch of table positions.
+
+    Attributes:
+        positions: table positions ``x`` (m).
+        interface: interface DOF ``u`` of the table at each position, ``(n_pos, m)`` (m, rad).
+        forces: element forces, ``(n_pos, k, rows, n)`` (N).
+        result: optimistix result code per position.
+        steps: Newton (polish) steps per position.
+    """
+
+    positions: Float[Array, " n_pos"]
+    interface: Float[Array, "n_pos m"]
+    forces: Float[Array, "n_pos k rows n"]
+    result: optx.RESULTS
+    steps: Int[Array, " n_pos"]
+
+    @property
+    def converged(self) -> jax.Array:
+        return self.result == optx.RESULTS.successful
+
+
+def _solve_one(machine: Machine, x, rails, Phi, K, f, rtol, atol, max_steps):
+    rail = machine.rail_under_carriages(x, rails)
+    args = (machine, K, f, Phi, machine.screw_stiffness(x), rail)
+    sol = solve_equilibrium(
+        _potential,
+        _grad_hess,
+        _residual,
+        jnp.zeros(Phi.shape[1]),
+        args,
+        rtol=rtol,
+        atol=atol,
+        max_steps=max_steps,
+    )
+    u = Phi @ (sol.value * DOF_SCALE)
+    forces = machine.carriage.element_forces(_contacts(machine, u, rail))
+    return u, forces, sol.result, sol.stats["num_steps"]
+
+
+@eqx.filter_jit
+def equilibrium(
+    machine: Machine,
+    rails: tuple[AbstractRailProfile, AbstractRailProfile],
+    positions: Float[Array, " n_pos"],
+    *,
+    rtol: float = 1e-10,
+    atol: float = 1e-10,
+    max_steps: int = 60,
+) -> MachineState:
+    """Equilibrium of the machine at every table position, in one compiled, vmapped call.
+
+    Arguments:
+        machine: the machine (elastic or rigid table).
+        rails: the error profiles of rail 1 and rail 2.
+        positions: table positions ``x`` (m).
+        rtol, atol: tolerances of the scaled Newton solve (µm, µrad, kN).
+        max_steps: damped-Newton step limit.
+
+    Returns:
+        :class:`MachineState`; positions that did not converge are flagged in ``result``.
+    """
+    require_x64("equilibrium")
+    if len(rails) != 2:
+        raise ValueError(f"rails must be a pair (rail 1, rail 2), got {len(rails)} profiles")
+    positions = jnp.atleast_1d(jnp.asarray(positions, dtype=float))
+    machine = eqx.tree_at(lambda m: m.carriage, machine, machine.carriage.resolved())
+    Phi = machine.basis()
+    K = machine.table.K
+    f = machine.table.f
+
+    def one(x):
+        return _solve_one(machine, x, rails, Phi, K, f, rtol, atol, max_steps)
+
+    u, forces, result, steps = jax.vmap(one)(positions)
+    return MachineState(positions, u, forces, result, steps)
+
+
+def point_motion(machine: Machine, interface: Float[Array, "... m"]) -> Float[Array, "... p 6"]:
+    """Motion of the control points ``(ux, uy, uz, rx, ry, rz)`` (m, rad) for interface DOF.
+
+    Elastic: ``R u + r0`` (``r0``: the gravity sag with the carriages held). Rigid: ``R u`` with
+    ``u`` a rigid motion (the rigid table has no sag).
+    """
+    R = machine.table.R
+    motion = jnp.einsum("im,...m->...i", R, interface)
+    if not machine.rigid:
+        motion = motion + machine.table.r0
+    return motion.reshape(*motion.shape[:-1], -1, 6)
+
+
+def node_motion(machine: Machine, interface: Float[Array, " m"]) -> Float[Array, "n 6"]:
+    """Motion of every mesh node (mid-surface; m, rad) for interface DOF (the error field)."""
+    field = machine.table.node_modes @ interface
+    return field if machine.rigid else field + machine.table.node_u0
