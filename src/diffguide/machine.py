@@ -204,14 +204,14 @@ class MachineState(eqx.Module):
         return self.result == optx.RESULTS.successful
 
 
-def _solve_one(machine: Machine, x, rails, Phi, K, f, rtol, atol, max_steps):
+def _solve_one(machine: Machine, x, rails, Phi, K, f, y0, rtol, atol, max_steps):
     rail = machine.rail_under_carriages(x, rails)
     args = (machine, K, f, Phi, machine.screw_stiffness(x), rail)
     sol = solve_equilibrium(
         _potential,
         _grad_hess,
         _residual,
-        jnp.zeros(Phi.shape[1]),
+        y0,
         args,
         rtol=rtol,
         atol=atol,
@@ -228,6 +228,7 @@ def equilibrium(
     rails: tuple[AbstractRailProfile, AbstractRailProfile],
     positions: Float[Array, " n_pos"],
     *,
+    initial: Float[Array, "n_pos d"] | None = None,
     rtol: float = 1e-10,
     atol: float = 1e-10,
     max_steps: int = 60,
@@ -238,6 +239,8 @@ def equilibrium(
         machine: the machine (elastic or rigid table).
         rails: the error profiles of rail 1 and rail 2.
         positions: table positions ``x`` (m).
+        initial: Newton's starting point per position, in the generalized DOF (µm, µrad;
+            ``(n_pos, 30)`` elastic, ``(n_pos, 6)`` rigid); default zero.
         rtol, atol: tolerances of the scaled Newton solve (µm, µrad, kN).
         max_steps: damped-Newton step limit.
 
@@ -253,10 +256,17 @@ def equilibrium(
     K = machine.table.K
     f = machine.table.f
 
-    def one(x):
-        return _solve_one(machine, x, rails, Phi, K, f, rtol, atol, max_steps)
+    if initial is None:
+        initial = jnp.zeros((positions.shape[0], Phi.shape[1]))
+    if initial.shape != (positions.shape[0], Phi.shape[1]):
+        raise ValueError(
+            f"initial must have shape (n_pos, {Phi.shape[1]}), got {initial.shape}"
+        )
 
-    u, forces, result, steps = jax.vmap(one)(positions)
+    def one(x, y0):
+        return _solve_one(machine, x, rails, Phi, K, f, y0, rtol, atol, max_steps)
+
+    u, forces, result, steps = jax.vmap(one)(positions, initial)
     return MachineState(positions, u, forces, result, steps)
 
 

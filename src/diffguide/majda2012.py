@@ -41,7 +41,7 @@ def majda2012_machine(
 
     Arguments:
         nx, ny: table mesh divisions (default 20 × 10).
-        thickness: equivalent plate thickness (m), default 0.06; may be traced (gradients).
+        thickness: equivalent plate thickness (m), default 0.05; may be traced (gradients).
         E: Young's modulus of the table (Pa), default 110 GPa (cast iron); may be traced.
         law: carriage contact law, ``"hertz"`` or ``"rivin"``.
         preload_fraction: preload as a fraction of C (default 0.08); may be traced.

@@ -20,9 +20,13 @@ MAJDA2012_TABLE = MappingProxyType(
         # "smaller than 1200 x 600 mm"), longer than the 700 mm stroke as usual.
         "length": 1.0,
         "width": 0.5,
-        # Equivalent solid-plate thickness 60 mm: gives a 216 kg table, the mass of a ribbed
-        # cast-iron table of this size, and bending flexible enough for the paper's corner effects.
-        "thickness": 0.06,
+        # Equivalent solid-plate thickness 50 mm (180 kg, the mass range of a ribbed cast-iron
+        # table of this size). The paper obtained its plate thickness by matching a detailed
+        # model's stiffness and does not give it; over the plausible 40-80 mm the model's
+        # qualitative behaviour changes, and 50 mm is where it shows all of the paper's findings
+        # (at 80 mm the variant-2 corner roll drops below the yaw; at 40 mm the yaw differs by
+        # 13 % between points). This is a calibration to the paper, stated as such.
+        "thickness": 0.05,
         # Grey cast iron EN-GJL-250: E 103-118 GPa (EN 1561), nu 0.26, 7200 kg/m3.
         "E": 110e9,
         "nu": 0.26,

@@ -13,7 +13,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "report the sag under gravity. Units: mm for geometry, µm / µrad for deflections.",
     )
     p.add_argument("--preset", choices=["majda2012"], default="majda2012",
-                   help="machine preset (default: majda2012, 1000 × 500 × 60 mm cast iron)")
+                   help="machine preset (default: majda2012, 1000 × 500 × 50 mm cast iron)")
     p.add_argument("--nx", type=int, default=None,
                    help="uniform divisions along X (rails) before footprint lines (default 20)")
     p.add_argument("--ny", type=int, default=None,

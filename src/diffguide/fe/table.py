@@ -1,7 +1,7 @@
 """The table of a preset machine: mesh + plate + carriage/nut patches + control points.
 
 :func:`majda2012_table` builds the ``majda2012`` table from ``presets.MAJDA2012_TABLE``,
-``MAJDA2012_LAYOUT`` and ``MAJDA2012_POINTS``: a 1000 × 500 × 60 mm cast-iron plate on four
+``MAJDA2012_LAYOUT`` and ``MAJDA2012_POINTS``: a 1000 × 500 × 50 mm cast-iron plate on four
 carriages (rails at y = ∓170 mm, carriages at x = ∓160 mm, footprints 60 × 48 mm bolted to the
 underside) and the screw nut under the centre. Grid lines are added at every footprint edge and
 at the control points, so footprints hold whole elements and points sit on nodes.
@@ -57,7 +57,7 @@ def majda2012_table(
         nx, ny: uniform divisions along X and Y (default 20 × 10, 50 mm elements), >= 1.
         nut: add the screw-nut patch (last interface, 6 DOF) under the table centre.
         ribs: optional ribs under the plate.
-        thickness: plate thickness in m (default 0.06, the preset's equivalent thickness).
+        thickness: plate thickness in m (default 0.05, the preset's equivalent thickness).
         material: plate material (default: the preset's cast iron, E 110 GPa, ν 0.26).
         points: control points ``{name: (x, y)}`` on the top surface (m); default P1..P5.
 

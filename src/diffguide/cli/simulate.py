@@ -1,0 +1,117 @@
+"""``diffguide simulate``: joint kinematic errors over the stroke (the paper's Figs. 7–9)."""
+
+import argparse
+
+import numpy as np
+
+from ..io import atomic_savefig, atomic_write_text
+
+
+def parse_positions(text: str) -> np.ndarray:
+    """``START:STOP:COUNT`` (mm, inclusive) → positions (m)."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        start, stop, count = float(parts[0]), float(parts[1]), int(parts[2])
+    except ValueError:
+        raise ValueError(
+            f"--positions must be START:STOP:COUNT in mm (e.g. -350:350:71), got {text!r}"
+        ) from None
+    if count < 2 or not np.isfinite(start) or not np.isfinite(stop) or stop <= start:
+        raise ValueError(f"--positions needs STOP > START and COUNT >= 2, got {text!r}")
+    return np.linspace(start, stop, count) * 1e-3
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "simulate",
+        help="joint kinematic errors (µm, µrad) at the control points over the stroke",
+        description="Equilibrium of the table on its four carriages at every position, and the "
+        "six joint kinematic errors (ISO 230-1: EXX, EYX, EZX in µm; EAX roll, EBX pitch, ECX "
+        "yaw in µrad = µm/m) at each control point, relative to the reference position x = 0.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("--preset", default="majda2012", choices=("majda2012",), help="machine")
+    p.add_argument(
+        "--variant", type=int, choices=(1, 2, 3), default=1,
+        help="the paper's rail error Δ/2·(x + x²), x in m, Δ = 0.05 mm: 1 rail 1 vertical; "
+        "2 rail 1 horizontal; 3 rail 1 vertical and rail 2 horizontal (ignored with --rails)",
+    )
+    p.add_argument(
+        "--rails",
+        help="rail profiles CSV: rail,s_mm,vertical_um,horizontal_um (rail 1 at -Y, 2 at +Y; "
+        "s along the rail from under the table centre at x = 0)",
+    )
+    p.add_argument(
+        "--positions", default="-350:350:71", help="table positions START:STOP:COUNT (mm)"
+    )
+    p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
+    p.add_argument("--mesh", default="20x10", help="table mesh NXxNY (elements)")
+    p.add_argument("--out", required=True, help="output CSV (one row per position and point)")
+    p.add_argument("--plot", help="output figure (PNG): the six errors against position")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.set_defaults(func=run)
+
+
+def parse_mesh(text: str) -> tuple[int, int]:
+    try:
+        nx, ny = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--mesh must be NXxNY (e.g. 20x10), got {text!r}") from None
+    if not (1 <= nx <= 200 and 1 <= ny <= 200):
+        raise ValueError(f"--mesh divisions must be in 1..200, got {text!r}")
+    return nx, ny
+
+
+def run(args) -> int:
+    import sys
+
+    from ..io import read_rails_csv
+    from ..kinematics import ERROR_NAMES, joint_errors
+    from ..majda2012 import STROKE, majda2012_machine, paper_variant
+
+    positions = parse_positions(args.positions)
+    if np.max(np.abs(positions)) > STROKE / 2 + 1e-12:
+        raise ValueError(
+            f"--positions must lie within the ±{STROKE / 2 * 1e3:.0f} mm stroke, got {args.positions!r}"
+        )
+    nx, ny = parse_mesh(args.mesh)
+    rails = read_rails_csv(args.rails) if args.rails else paper_variant(args.variant)
+    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
+    say(f"building the {args.preset} machine (table mesh {nx}x{ny}) ...")
+    machine = majda2012_machine(nx=nx, ny=ny)
+    if args.rigid_table:
+        machine = machine.with_rigid_table()
+    say(f"solving the equilibrium at {len(positions)} positions ...")
+    je = joint_errors(machine, rails, positions)
+    ok = np.asarray(je.converged)
+    if not ok.all():
+        bad = ", ".join(f"{x * 1e3:g} mm" for x in positions[~ok])
+        print(
+            f"diffguide simulate: error: the equilibrium did not converge at {bad}; "
+            "nothing written",
+            file=sys.stderr,
+        )
+        return 3
+    errs = je.user_units()
+    header = "position_mm,point,x_mm,y_mm," + ",".join(
+        f"{n}_{'um' if k < 3 else 'urad'}" for k, n in enumerate(ERROR_NAMES)
+    )
+    lines = [header]
+    xy = np.asarray(je.points_xy) * 1e3
+    for i, x in enumerate(positions):
+        for j, name in enumerate(je.point_names):
+            vals = ",".join(f"{v + 0.0:.6f}" for v in errs[i, j])
+            lines.append(f"{x * 1e3:.6g},{name},{xy[j, 0]:.6g},{xy[j, 1]:.6g},{vals}")
+    atomic_write_text(args.out, "\n".join(lines) + "\n")
+    say(f"wrote {args.out}")
+    if args.plot:
+        from ..plotting.errors import plot_joint_errors
+
+        what = f"rails from {args.rails}" if args.rails else f"variant {args.variant}"
+        table = "rigid table" if args.rigid_table else "elastic table"
+        fig = plot_joint_errors(positions * 1e3, errs, je.point_names, f"{args.preset}, {what}, {table}")
+        atomic_savefig(fig, args.plot, dpi=110)
+        say(f"wrote {args.plot}")
+    return 0

@@ -1,0 +1,56 @@
+"""Figures of joint kinematic errors against table position (the paper's Figs. 7–9)."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+_LABELS = (
+    ("EXX", "µm", "positioning"),
+    ("EYX", "µm", "horizontal straightness"),
+    ("EZX", "µm", "vertical straightness"),
+    ("EAX", "µrad", "roll"),
+    ("EBX", "µrad", "pitch"),
+    ("ECX", "µrad", "yaw"),
+)
+
+
+def plot_joint_errors(positions_mm, errors_user, point_names, title="", compare=None):
+    """Six panels (EXX … ECX) against position, one line per control point.
+
+    Arguments:
+        positions_mm: (n_pos,) table positions (mm).
+        errors_user: (n_pos, n_points, 6) errors in µm / µrad.
+        point_names: names of the points.
+        compare: optional second set of errors (same shape), drawn dashed (e.g. rigid table).
+    Returns:
+        the matplotlib ``Figure``.
+    """
+    fig, axes = plt.subplots(2, 3, figsize=(13, 6.5), sharex=True, constrained_layout=True)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, ax in enumerate(axes.flat):
+        name, unit, what = _LABELS[k]
+        for j, pname in enumerate(point_names):
+            c = colors[j % len(colors)]
+            ax.plot(positions_mm, errors_user[:, j, k], color=c, lw=1.6, label=pname)
+            if compare is not None:
+                ax.plot(positions_mm, compare[:, j, k], color=c, lw=1.0, ls="--")
+        ax.set_title(f"{name}: {what}", fontsize=10)
+        ax.set_ylabel(unit)
+        ax.grid(alpha=0.3)
+        if k >= 3:
+            ax.set_xlabel("table position x (mm)")
+    axes.flat[0].legend(fontsize=8, ncol=2)
+    if compare is not None:
+        axes.flat[1].plot([], [], "k-", label="elastic table")
+        axes.flat[1].plot([], [], "k--", label="rigid table")
+        axes.flat[1].legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def error_ranges(errors_user) -> np.ndarray:
+    """Peak-to-peak range of each error at each point, (n_points, 6)."""
+    return np.ptp(errors_user, axis=0)
