@@ -1,106 +1,96 @@
-r"""Newton's method with a backtracking line search on a convex potential, then an optimistix
-polish that carries the implicit derivatives.
+r"""Newton's method with a backtracking line search on a convex potential, differentiated
+implicitly through ``optimistix.ImplicitAdjoint``.
 
 The equilibria of diffguide are stationary points of convex potentials
 :math:`Π(y) = ½yᵀKy − fᵀy + \sum_j φ(a_j(y))`. Plain Newton can overshoot into a region where
 whole rows of elements are lifted off (a singular tangent); with an Armijo backtracking on ``Π``
-every step decreases the potential and the iteration converges from any start. The converged
-point then seeds ``optimistix.root_find(Newton)`` on the residual, which takes one or two steps,
-returns the result code and gives derivatives by implicit differentiation (``ImplicitAdjoint``):
-the damped loop itself is wrapped in ``stop_gradient`` and never differentiated.
+every step decreases the potential and the iteration converges from any start. The loop is never
+differentiated: optimistix's implicit adjoint gives the derivatives of the root ``y*(θ)`` of the
+gradient ``g(y, θ) = ∂Π/∂y`` from the implicit function theorem,
+``dy*/dθ = −(∂g/∂y)⁻¹ ∂g/∂θ``, with one linear solve per tangent.
 """
 
 from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
+import lineax as lx
 import optimistix as optx
 
 _ARMIJO = 1e-4
 _HALVINGS = 40
+_ADJOINT = optx.ImplicitAdjoint(linear_solver=lx.LU())
 
 
-def damped_newton(
-    potential: Callable,
-    grad_hess: Callable,
-    y0: jax.Array,
-    args,
-    *,
-    max_steps: int = 60,
-    tol: float = 1e-9,
-) -> jax.Array:
-    """Minimise a convex ``potential(y, args)`` by Newton steps with Armijo backtracking.
-
-    ``grad_hess(y, args)`` returns the gradient and Hessian of the potential (closed forms are
-    much cheaper to compile than ``jax.hessian``). Stops when the largest Newton step component
-    is below ``tol`` (in the units of ``y``) or after ``max_steps``. Not differentiable by
-    design (see the module docstring).
-    """
-    args = jax.lax.stop_gradient(args)
-
-    def newton_step(y):
-        g, H = grad_hess(y, args)
-        d = -jnp.linalg.solve(H, g)
-        # a singular tangent (everything lifted off) falls back to a gradient step
-        ok = jnp.all(jnp.isfinite(d))
-        d = jnp.where(ok, d, -g / jnp.maximum(jnp.max(jnp.abs(g)), 1e-300))
-        return g, d
+def _newton_loop(inputs):
+    """The primal: damped Newton. Returns ``(y, (converged, steps))``."""
+    potential, grad_hess, y0, args, max_steps, tol, while_loop = inputs
+    del while_loop  # the loop is not differentiated; a plain lax loop serves
 
     def body(state):
-        y, _, k = state
-        g, d = newton_step(y)
-        p0 = potential(y, args)
+        y, _, k, p0 = state
+        g, H = grad_hess(y, args)
+        d = -jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(H), g)  # H is SPD
+        # a singular tangent (everything lifted off) falls back to a gradient step
+        finite = jnp.all(jnp.isfinite(d))
+        d = jnp.where(finite, d, -g / jnp.maximum(jnp.max(jnp.abs(g)), 1e-300))
         slope = jnp.dot(g, d)
         slack = 1e-13 * jnp.abs(p0)
 
+        def too_high(ts):
+            t, p = ts
+            return (p > p0 + _ARMIJO * t * slope + slack) & (t > 2.0**-_HALVINGS)
+
         def shrink(ts):
             t, _ = ts
-            return t * 0.5, None
+            return t * 0.5, potential(y + 0.5 * t * d, args)
 
-        def too_high(ts):
-            t, _ = ts
-            return (potential(y + t * d, args) > p0 + _ARMIJO * t * slope + slack) & (
-                t > 2.0**-_HALVINGS
-            )
-
-        t, _ = jax.lax.while_loop(too_high, shrink, (jnp.asarray(1.0, y.dtype), None))
+        t, p = jax.lax.while_loop(too_high, shrink, (jnp.ones((), y.dtype), potential(y + d, args)))
         step = t * d
-        return y + step, jnp.max(jnp.abs(step)), k + 1
+        return y + step, jnp.max(jnp.abs(step)), k + 1, p
 
     def cond(state):
-        _, size, k = state
-        return (size > tol) & (k < max_steps)
+        _, size, k, _ = state
+        return (size > tol) & (k < max_steps)  # a NaN step ends the loop too
 
-    y, _, _ = jax.lax.while_loop(cond, body, (y0, jnp.asarray(jnp.inf, y0.dtype), 0))
-    return jax.lax.stop_gradient(y)
+    init = (y0, jnp.asarray(jnp.inf, y0.dtype), jnp.asarray(0), potential(y0, args))
+    y, size, k, _ = jax.lax.while_loop(cond, body, init)
+    return y, (size <= tol, k)
+
+
+def _rewrite(root, _, inputs):
+    """The function whose root is differentiated: the potential's gradient."""
+    potential, grad_hess, _y0, args, *_ = inputs
+    del potential
+    return grad_hess(root, args)[0]
 
 
 def solve_equilibrium(
     potential: Callable,
     grad_hess: Callable,
-    residual: Callable,
     y0: jax.Array,
     args,
     *,
-    rtol: float = 1e-10,
-    atol: float = 1e-10,
+    tol: float = 1e-9,
     max_steps: int = 60,
-    polish_steps: int = 20,
-    throw: bool = False,
-) -> optx.Solution:
-    """Damped Newton on ``potential`` (with ``grad_hess``, see :func:`damped_newton`), then
-    ``optx.root_find(Newton)`` on ``residual``.
+) -> tuple[jax.Array, optx.RESULTS, jax.Array]:
+    """Minimise the convex ``potential(y, args)``; derivatives w.r.t. ``args`` are implicit.
 
-    ``residual(y, args)`` must vanish where ``potential`` is stationary (a scaled gradient). The
-    returned ``optx.Solution`` carries the result code of the polish and differentiates
-    implicitly with respect to ``args``.
+    Arguments:
+        potential: ``(y, args) -> Π`` (scalar).
+        grad_hess: ``(y, args) -> (∂Π/∂y, ∂²Π/∂y²)`` (closed forms compile far faster than
+            ``jax.hessian``); must be global functions or ``functools.partial`` of them.
+        y0: starting point. args: everything the potential depends on (a pytree).
+        tol: stop when the largest Newton step component is below ``tol`` (units of ``y``).
+        max_steps: Newton step limit.
+
+    Returns:
+        ``(y, result, steps)``: the minimiser, ``optx.RESULTS.successful`` or
+        ``nonlinear_max_steps_reached`` (also for a non-finite iterate), and the steps taken.
     """
-    start = damped_newton(potential, grad_hess, y0, args, max_steps=max_steps, tol=atol * 10)
-    return optx.root_find(
-        residual,
-        optx.Newton(rtol=rtol, atol=atol),
-        start,
-        args=args,
-        max_steps=polish_steps,
-        throw=throw,
+    inputs = (potential, grad_hess, y0, args, max_steps, tol)
+    y, (converged, steps) = _ADJOINT.apply(_newton_loop, _rewrite, inputs, frozenset())
+    result = optx.RESULTS.where(
+        converged, optx.RESULTS.successful, optx.RESULTS.nonlinear_max_steps_reached
     )
+    return y, result, steps

@@ -6,14 +6,11 @@ point of the convex potential :math:`Π(q) = \sum_j φ(a_j(q)) - W·q`):
 
 .. math::  R(q) = \sum_j F(a_j(q))\,G_j + W = 0,
 
-solved by Newton with a line search on Π (:mod:`diffguide._newton`), polished by optimistix
-Newton on scaled unknowns (µm, µrad) and residuals (kN, kN·(10 mm)), so one
-tolerance serves displacements and forces (PITFALLS.md). Derivatives with respect to the load,
-the carriage parameters (preload, law) and the rail deviation come from implicit differentiation
+solved by Newton with a line search on Π in scaled unknowns (µm, µrad)
+(:mod:`diffguide._newton`). Derivatives with respect to the load, the carriage parameters
+(preload, law) and the rail deviation come from implicit differentiation
 (``optimistix.ImplicitAdjoint``), never from unrolled Newton iterations.
 """
-
-import functools
 
 import equinox as eqx
 import jax
@@ -25,10 +22,8 @@ from ._precision import require_x64
 from ._types import Array, Float, Int
 from .guideway import Carriage
 
-#: Scales: unknowns in µm and µrad, residual forces in kN and moments in kN·(10 mm).
+#: Scale of the unknowns: µm and µrad.
 POSE_SCALE = 1e-6
-FORCE_SCALE = 1e3
-MOMENT_SCALE = 1e3 * 1e-2
 
 
 class CarriageSolution(eqx.Module):
@@ -53,38 +48,29 @@ class CarriageSolution(eqx.Module):
         return self.result == optx.RESULTS.successful
 
 
-_SCALES = (FORCE_SCALE,) * 3 + (MOMENT_SCALE,) * 3
 ALL_FREE = (1, 2, 3, 4, 5)
 TRANSLATION_ONLY = (1, 2)
 
 
-def _pose(y, free):
-    """Pose (m, rad) from the free unknowns (µm, µrad); the other components are held at 0."""
-    return jnp.zeros(6).at[jnp.array(free)].set(y) * POSE_SCALE
+def _selection(free: tuple[int, ...]) -> jax.Array:
+    """``S`` (6, d): the pose (in µm, µrad) from the free unknowns, ``q = S y``."""
+    return jnp.eye(6)[:, jnp.array(free)]
 
 
-def _potential(y, args, free):
+def _potential(y, args):
     """Total potential Π = Σφ(a_j) − W·q (J) in the scaled unknowns."""
-    carriage, load, rail = args
-    pose = _pose(y, free)
+    carriage, load, rail, S = args
+    pose = S @ y * POSE_SCALE
     return carriage.energy(carriage.approaches(pose, rail)) - jnp.dot(load, pose)
 
 
-def _grad_hess(y, args, free):
+def _grad_hess(y, args):
     """Gradient (J/µm) and Hessian (J/µm²) of :func:`_potential`: −(wrench + W), −tangent."""
-    carriage, load, rail = args
-    a = carriage.approaches(_pose(y, free), rail)
-    idx = jnp.array(free)
-    g = -(carriage.wrench(a) + load)[idx] * POSE_SCALE
-    H = -carriage.tangent(a)[idx][:, idx] * POSE_SCALE**2
+    carriage, load, rail, S = args
+    a = carriage.approaches(S @ y * POSE_SCALE, rail)
+    g = -S.T @ (carriage.wrench(a) + load) * POSE_SCALE
+    H = -S.T @ carriage.tangent(a) @ S * POSE_SCALE**2
     return g, H
-
-
-def _residual(y, args, free):
-    carriage, load, rail = args
-    a = carriage.approaches(_pose(y, free), rail)
-    wrench = carriage.wrench(a) + load
-    return wrench[jnp.array(free)] / jnp.array([_SCALES[i] for i in free])
 
 
 @eqx.filter_jit
@@ -94,10 +80,8 @@ def solve_carriage(
     rail: Float[Array, "n 2"] | None = None,
     *,
     initial_pose: Float[Array, " 6"] | None = None,
-    rtol: float = 1e-10,
-    atol: float = 1e-10,
+    tol: float = 1e-9,
     max_steps: int = 100,
-    throw: bool = False,
     free: tuple[int, ...] = ALL_FREE,
 ) -> CarriageSolution:
     """Equilibrium pose of a rigid carriage.
@@ -109,9 +93,8 @@ def solve_carriage(
             carried by the drive, not the elements, and is ignored; the pose's ``tx`` is 0.
         rail: rail deviation ``(e_y, e_z)`` (m) under each element, ``(n, 2)``; default straight.
         initial_pose: Newton's starting pose (m, rad); default zero.
-        rtol, atol: Newton tolerances on the scaled problem (µm, µrad, kN).
-        max_steps: Newton step limit.
-        throw: raise on non-convergence instead of reporting it in ``result``.
+        tol: stop when the Newton step is below ``tol`` µm / µrad.
+        max_steps: Newton step limit (non-convergence is reported in ``result``).
         free: the pose components solved for (indices 1–5 of ``(tx, ty, tz, θx, θy, θz)``; the
             others are held at 0). ``tx`` is never free: rolling elements carry no force along
             the rail (the drive does), and ``load[0]`` is ignored. A carriage with one opposed
@@ -137,31 +120,15 @@ def solve_carriage(
     free = tuple(sorted(set(free)))
     if not free or not set(free) <= set(ALL_FREE):
         raise ValueError(f"free must be a non-empty subset of {ALL_FREE}, got {free!r}")
-    y0 = (
-        jnp.zeros(len(free))
-        if initial_pose is None
-        else jnp.asarray(initial_pose)[jnp.array(free)] / POSE_SCALE
+    S = _selection(free)
+    y0 = jnp.zeros(len(free)) if initial_pose is None else S.T @ jnp.asarray(initial_pose) / POSE_SCALE
+    y, result, steps = solve_equilibrium(
+        _potential, _grad_hess, y0, (carriage, load, rail, S), tol=tol, max_steps=max_steps
     )
-    sol = solve_equilibrium(
-        functools.partial(_potential, free=free),
-        functools.partial(_grad_hess, free=free),
-        functools.partial(_residual, free=free),
-        y0,
-        (carriage, load, rail),
-        rtol=rtol,
-        atol=atol,
-        max_steps=max_steps,
-        throw=throw,
-    )
-    pose = _pose(sol.value, free)
+    pose = S @ y * POSE_SCALE
     a = carriage.approaches(pose, rail)
-    return CarriageSolution(
-        pose=pose,
-        approaches=a,
-        forces=carriage.element_forces(a),
-        result=sol.result,
-        steps=sol.stats["num_steps"],
-    )
+    return CarriageSolution(pose=pose, approaches=a, forces=carriage.element_forces(a),
+                            result=result, steps=steps)
 
 
 def rail_under(carriage: Carriage, profile, position: float | Float[Array, ""]):

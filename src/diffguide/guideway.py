@@ -16,6 +16,8 @@ With carriage pose ``q = (t, θ)`` (translation, m; small rotation, rad) and rai
 carriage (about its origin) is :math:`\sum_j F(a_j)\,[n_j;\; p_j × n_j]`.
 """
 
+import dataclasses
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -55,6 +57,7 @@ class Carriage(eqx.Module):
     preload_force: float | Float[Array, ""]
     eps_ratio: float = 0.02
     crowning: Float[Array, " n"] | None = None
+    jacobian_cache: Float[Array, "rows n 6"] | None = None
 
     def __check_init__(self):
         yz = np.shape(self.row_yz)
@@ -85,9 +88,9 @@ class Carriage(eqx.Module):
             raise ValueError("row_normals must be unit vectors")
 
     def resolved(self) -> "Carriage":
-        """This carriage with its contact law's coefficient evaluated once (see
-        :meth:`~diffguide.contact.AbstractContactLaw.resolved`)."""
-        return eqx.tree_at(lambda c: c.law, self, self.law.resolved())
+        """This carriage with its contact law's coefficient and its element Jacobian evaluated
+        once (see :meth:`~diffguide.contact.AbstractContactLaw.resolved`): for solvers."""
+        return dataclasses.replace(self, law=self.law.resolved(), jacobian_cache=self.jacobian())
 
     @property
     def n_rows(self) -> int:
@@ -136,6 +139,8 @@ class Carriage(eqx.Module):
 
     def jacobian(self) -> Float[Array, "rows n 6"]:
         """``G_j = [n_j; p_j × n_j]``: ``a_j = a_j⁰ − G_j·q``, wrench ``= Σ F_j G_j`` (m, m·m)."""
+        if self.jacobian_cache is not None:
+            return self.jacobian_cache
         p = self.points()
         nrm = jnp.broadcast_to(self.normals()[:, None, :], p.shape)
         return jnp.concatenate([nrm, jnp.cross(p, nrm)], axis=-1)

@@ -12,8 +12,8 @@ total potential is convex (SPEC §2.3):
 with ``a_kj`` the element approaches of carriage ``k`` over the rail at ``s = x + X_k + ξ_j``
 (:meth:`~diffguide.guideway.Carriage.approaches`), ``k_s(x) = E A / (L₀ + x)`` the axial stiffness
 of the screw between its fixed bearing and the nut. Its stationary point is found with Newton and
-an Armijo line search, polished by optimistix (implicit derivatives; :mod:`diffguide._newton`),
-for all positions in one vmapped call.
+an Armijo line search, differentiated implicitly by optimistix (:mod:`diffguide._newton`), for
+all positions in one vmapped call.
 
 Rigid-table mode: the same machine with an infinitely stiff table, i.e. the interface DOF
 restricted to the six rigid-body motions of the table, ``u = Φ q`` (``Φ`` maps the table's
@@ -36,10 +36,8 @@ from .fe.condense import CondensedTable
 from .guideway import Carriage
 from .rails import AbstractRailProfile
 
-#: Unknowns in µm and µrad; residual forces in kN and moments in kN·(10 mm).
+#: Unknowns in µm and µrad.
 DOF_SCALE = 1e-6
-_FORCE_SCALE = 1e3
-_MOMENT_SCALE = 1e3 * 1e-2
 
 
 def rigid_body_map(ref_points: Float[Array, "p 3"]) -> Float[Array, "6p 6"]:
@@ -144,42 +142,40 @@ def _contacts(machine: Machine, u, rail):
     return jax.vmap(machine.carriage.approaches)(poses, rail)
 
 
+def _interface(y, Phi):
+    """Interface DOF (m, rad) from the generalized unknowns (µm, µrad); ``Phi`` is ``None`` for
+    the elastic table (the unknowns are the interface DOF themselves)."""
+    return (y if Phi is None else Phi @ y) * DOF_SCALE
+
+
 def _potential(y, args):
     machine, K, f, Phi, ks, rail = args
-    u = Phi @ (y * DOF_SCALE)
+    u = _interface(y, Phi)
     a = _contacts(machine, u, rail)
     nut = u[machine.nut_dof]
     return 0.5 * u @ (K @ u) - f @ u + machine.carriage.energy(a) + 0.5 * ks * nut**2
 
 
-def _gradient_u(machine, K, f, ks, rail, u):
-    """∂Π/∂u (N, N·m) and the contact approaches."""
-    a = _contacts(machine, u, rail)
-    wrenches = jax.vmap(machine.carriage.wrench)(a)  # (k, 6), on the carriages = on the table
-    g = K @ u - f
-    g = g.at[: 6 * machine.n_carriages].add(-wrenches.reshape(-1))
-    g = g.at[machine.nut_dof].add(ks * u[machine.nut_dof])
-    return g, a
-
-
 def _grad_hess(y, args):
+    """Gradient (J/µm) and Hessian (J/µm²) of the potential in the scaled unknowns."""
     machine, K, f, Phi, ks, rail = args
-    u = Phi @ (y * DOF_SCALE)
-    g, a = _gradient_u(machine, K, f, ks, rail, u)
-    tangents = jax.vmap(machine.carriage.tangent)(a)  # (k, 6, 6) d(wrench)/d(pose)
-    blocks = [tangents[i] for i in range(machine.n_carriages)] + [jnp.zeros((6, 6))]
-    H = K - jax.scipy.linalg.block_diag(*blocks)
+    u = _interface(y, Phi)
+    a = _contacts(machine, u, rail)
+    carriage = machine.carriage
+    G = carriage.jacobian().reshape(-1, 6)  # (elements, 6)
+    F = carriage.element_forces(a).reshape(machine.n_carriages, -1)
+    k = carriage.element_stiffnesses(a).reshape(machine.n_carriages, -1)
+    wrenches = F @ G  # (k, 6): elements on the carriages = carriages on the table
+    tangents = jnp.einsum("ce,ei,ej->cij", k, G, G)  # (k, 6, 6): −d(wrench)/d(pose)
+    nc = 6 * machine.n_carriages
+    g = K @ u - f
+    g = g.at[:nc].add(-wrenches.reshape(-1))
+    g = g.at[machine.nut_dof].add(ks * u[machine.nut_dof])
+    H = K.at[:nc, :nc].add(jax.scipy.linalg.block_diag(*tangents))
     H = H.at[machine.nut_dof, machine.nut_dof].add(ks)
-    return Phi.T @ g * DOF_SCALE, Phi.T @ H @ Phi * DOF_SCALE**2
-
-
-def _residual(y, args):
-    machine, K, f, Phi, ks, rail = args
-    u = Phi @ (y * DOF_SCALE)
-    g, _ = _gradient_u(machine, K, f, ks, rail, u)
-    d = Phi.shape[1]
-    scale = jnp.tile(jnp.array([_FORCE_SCALE] * 3 + [_MOMENT_SCALE] * 3), d // 6)
-    return (Phi.T @ g) / scale
+    if Phi is not None:
+        g, H = Phi.T @ g, Phi.T @ H @ Phi
+    return g * DOF_SCALE, H * DOF_SCALE**2
 
 
 class MachineState(eqx.Module):
@@ -190,7 +186,7 @@ class MachineState(eqx.Module):
         interface: interface DOF ``u`` of the table at each position, ``(n_pos, m)`` (m, rad).
         forces: element forces, ``(n_pos, k, rows, n)`` (N).
         result: optimistix result code per position.
-        steps: Newton (polish) steps per position.
+        steps: Newton steps per position.
     """
 
     positions: Float[Array, " n_pos"]
@@ -204,22 +200,15 @@ class MachineState(eqx.Module):
         return self.result == optx.RESULTS.successful
 
 
-def _solve_one(machine: Machine, x, rails, Phi, K, f, y0, rtol, atol, max_steps):
+def _solve_one(machine: Machine, x, rails, Phi, K, f, y0, tol, max_steps):
     rail = machine.rail_under_carriages(x, rails)
     args = (machine, K, f, Phi, machine.screw_stiffness(x), rail)
-    sol = solve_equilibrium(
-        _potential,
-        _grad_hess,
-        _residual,
-        y0,
-        args,
-        rtol=rtol,
-        atol=atol,
-        max_steps=max_steps,
+    y, result, steps = solve_equilibrium(
+        _potential, _grad_hess, y0, args, tol=tol, max_steps=max_steps
     )
-    u = Phi @ (sol.value * DOF_SCALE)
+    u = _interface(y, Phi)
     forces = machine.carriage.element_forces(_contacts(machine, u, rail))
-    return u, forces, sol.result, sol.stats["num_steps"]
+    return u, forces, result, steps
 
 
 @eqx.filter_jit
@@ -229,8 +218,7 @@ def equilibrium(
     positions: Float[Array, " n_pos"],
     *,
     initial: Float[Array, "n_pos d"] | None = None,
-    rtol: float = 1e-10,
-    atol: float = 1e-10,
+    tol: float = 1e-9,
     max_steps: int = 60,
 ) -> MachineState:
     """Equilibrium of the machine at every table position, in one compiled, vmapped call.
@@ -241,8 +229,8 @@ def equilibrium(
         positions: table positions ``x`` (m).
         initial: Newton's starting point per position, in the generalized DOF (µm, µrad;
             ``(n_pos, 30)`` elastic, ``(n_pos, 6)`` rigid); default zero.
-        rtol, atol: tolerances of the scaled Newton solve (µm, µrad, kN).
-        max_steps: damped-Newton step limit.
+        tol: stop when the largest Newton step is below ``tol`` µm / µrad.
+        max_steps: Newton step limit.
 
     Returns:
         :class:`MachineState`; positions that did not converge are flagged in ``result``.
@@ -252,19 +240,18 @@ def equilibrium(
         raise ValueError(f"rails must be a pair (rail 1, rail 2), got {len(rails)} profiles")
     positions = jnp.atleast_1d(jnp.asarray(positions, dtype=float))
     machine = eqx.tree_at(lambda m: m.carriage, machine, machine.carriage.resolved())
-    Phi = machine.basis()
+    Phi = machine.basis() if machine.rigid else None
+    d = machine.table.K.shape[0] if Phi is None else Phi.shape[1]
     K = machine.table.K
     f = machine.table.f
 
     if initial is None:
-        initial = jnp.zeros((positions.shape[0], Phi.shape[1]))
-    if initial.shape != (positions.shape[0], Phi.shape[1]):
-        raise ValueError(
-            f"initial must have shape (n_pos, {Phi.shape[1]}), got {initial.shape}"
-        )
+        initial = jnp.zeros((positions.shape[0], d))
+    if initial.shape != (positions.shape[0], d):
+        raise ValueError(f"initial must have shape (n_pos, {d}), got {initial.shape}")
 
     def one(x, y0):
-        return _solve_one(machine, x, rails, Phi, K, f, y0, rtol, atol, max_steps)
+        return _solve_one(machine, x, rails, Phi, K, f, y0, tol, max_steps)
 
     u, forces, result, steps = jax.vmap(one)(positions, initial)
     return MachineState(positions, u, forces, result, steps)

@@ -31,9 +31,20 @@ def ramp_slope(a: Float[Array, "..."], eps: ScalarLike) -> Float[Array, "..."]:
     return jnp.where(a >= eps, 1.0, jnp.where(a <= -eps, 0.0, (a + eps) / (2.0 * eps)))
 
 
+def _pow(r, p: float):
+    """``r**p`` for ``r > 0``; half-integer exponents (the ball law's 1/2, 3/2, 5/2, 4) as square
+    roots and products, several times cheaper than the general ``exp(p·log r)``."""
+    twice = 2.0 * p
+    if twice == round(twice) and 0 <= twice <= 16:
+        n = int(round(twice))
+        whole = r ** (n // 2) if n // 2 else jnp.ones_like(r)
+        return whole * jnp.sqrt(r) if n % 2 else whole
+    return r**p
+
+
 def _safe_pow(r, p):
     positive = r > 0
-    return jnp.where(positive, jnp.where(positive, r, 1.0) ** p, 0.0)
+    return jnp.where(positive, _pow(jnp.where(positive, r, 1.0), p), 0.0)
 
 
 def element_force(a, K, alpha: float, eps) -> Float[Array, "..."]:
