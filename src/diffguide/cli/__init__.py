@@ -26,12 +26,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _glue_negative_ranges(argv: list[str]) -> list[str]:
+    """``--positions -350:350:71`` → ``--positions=-350:350:71`` (argparse would read the value,
+    which starts with '-', as an option)."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i].startswith("--") and "=" not in argv[i] and i + 1 < len(argv):
+            nxt = argv[i + 1]
+            if nxt.startswith("-") and ":" in nxt and nxt[1:2].isdigit():
+                out.append(f"{argv[i]}={nxt}")
+                i += 2
+                continue
+        out.append(argv[i])
+        i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     from .._precision import enable_x64
 
     enable_x64()
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_glue_negative_ranges(sys.argv[1:] if argv is None else list(argv)))
     try:
         return int(args.func(args) or 0)
     except (ValueError, OSError) as exc:  # bad input: one line, no traceback

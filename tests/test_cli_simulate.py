@@ -1,0 +1,93 @@
+"""The simulate and stiffness commands: outputs, units, errors for bad input."""
+
+import csv
+
+import numpy as np
+import pytest
+
+from diffguide.cli import main
+
+
+def test_stiffness_command_writes_fig3_csv(tmp_path, capsys):
+    out, png = tmp_path / "s.csv", tmp_path / "s.png"
+    assert main(["stiffness", "--preset", "majda2012", "--out", str(out), "--plot", str(png),
+                 "--steps", "5", "--max-load", "4000"]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert {r["direction"] for r in rows} == {"down", "up", "lateral"}
+    assert list(rows[0]) == ["direction", "load_N", "deflection_um"]
+    down = [float(r["deflection_um"]) for r in rows if r["direction"] == "down"]
+    assert down[0] == 0.0 and np.all(np.diff(down) > 0)
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_simulate_writes_one_row_per_position_and_point(tmp_path):
+    out, png = tmp_path / "e.csv", tmp_path / "e.png"
+    assert main(["simulate", "--variant", "2", "--positions", "-300:300:5", "--mesh", "10x5",
+                 "--out", str(out), "--plot", str(png), "--quiet"]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert list(rows[0]) == ["position_mm", "point", "x_mm", "y_mm", "EXX_um", "EYX_um",
+                             "EZX_um", "EAX_urad", "EBX_urad", "ECX_urad"]
+    assert len(rows) == 5 * 5
+    # the reference position x = 0 is in the sweep: every error is zero there
+    at_ref = [r for r in rows if float(r["position_mm"]) == 0.0]
+    assert all(abs(float(r[k])) < 1e-6 for r in at_ref for k in list(r)[4:])
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_simulate_reads_rails_csv_same_as_the_paper_variant(tmp_path):
+    # the paper's variant 1 written as a rails file must give the variant-1 result
+    s = np.linspace(-700, 700, 141)
+    i_um = 0.5 * 50.0 * (s / 1000 + (s / 1000) ** 2)  # Δ/2·(x/1000 + (x/1000)²), Δ = 50 µm
+    rails = tmp_path / "rails.csv"
+    rails.write_text("rail,s_mm,vertical_um,horizontal_um\n"
+                     + "".join(f"1,{a},{b},0\n" for a, b in zip(s, i_um)))
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    common = ["--positions", "-350:350:8", "--mesh", "10x5", "--quiet"]
+    assert main(["simulate", "--variant", "1", "--out", str(a), *common]) == 0
+    assert main(["simulate", "--rails", str(rails), "--out", str(b), *common]) == 0
+    va = np.array([[float(v) for v in r.values() if v not in ("P1", "P2", "P3", "P4", "P5")]
+                   for r in csv.DictReader(a.open())])
+    vb = np.array([[float(v) for v in r.values() if v not in ("P1", "P2", "P3", "P4", "P5")]
+                   for r in csv.DictReader(b.open())])
+    # a quadratic is reproduced exactly by the cubic spline except for the interpolation's end
+    # effects far outside the visited range: agreement to 1e-4 µm / µrad
+    np.testing.assert_allclose(vb, va, atol=1e-4)
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ("", "empty file"),
+        ("rail,s_mm,vertical_um\n1,0,0\n", "field 'horizontal_um': missing column"),
+        ("rail,s_mm,vertical_um,horizontal_um\n3,0,0,0\n", ":2: field 'rail'"),
+        ("rail,s_mm,vertical_um,horizontal_um\n1,abc,0,0\n", ":2: field 's_mm': 'abc' is not a number"),
+        ("rail,s_mm,vertical_um,horizontal_um\n1,0,nan,0\n", "field 'vertical_um'"),
+        ("rail,s_mm,vertical_um,horizontal_um\n1,0,0,0\n1,10,0,0\n", "at least 4"),
+        ("rail,s_mm,vertical_um,horizontal_um\n1,0,0\n", ":2: 3 fields, expected 4"),
+        ("rail,s_mm,vertical_um,horizontal_um\n1,0,1e9,0\n", "outside the allowed range"),
+    ],
+)
+def test_simulate_rejects_bad_rails_file(tmp_path, capsys, content, message):
+    rails = tmp_path / "bad.csv"
+    rails.write_text(content)
+    out = tmp_path / "e.csv"
+    assert main(["simulate", "--rails", str(rails), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "bad.csv" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--positions", "1:2"], "START:STOP:COUNT"),
+        (["--positions", "300:-300:5"], "STOP > START"),
+        (["--positions", "-500:500:5"], "stroke"),
+        (["--mesh", "0x5"], "--mesh"),
+        (["--rails", "/nonexistent/rails.csv"], "cannot read rails file"),
+    ],
+)
+def test_simulate_rejects_bad_arguments(tmp_path, capsys, args, message):
+    assert main(["simulate", "--out", str(tmp_path / "e.csv"), "--quiet", *args]) == 2
+    assert message in capsys.readouterr().err
