@@ -19,9 +19,9 @@ E. I. Rivin, *Stiffness and Damping in Mechanical Design* (1999); P. Majda, Prec
 import abc
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 
+from ._checks import concrete
 from ._types import Array, Float, ScalarLike
 from .hertz import ball_in_groove_compliance
 
@@ -81,25 +81,20 @@ class PowerLaw(AbstractContactLaw):
         return jnp.asarray(self.coefficient)
 
 
-def _concrete(*values) -> bool:
-    """Whether the values can be checked now (not traced inside jit/vmap/grad)."""
-    return not any(isinstance(v, jax.core.Tracer) for v in values)
-
-
 def _check_positive(name: str, value: float, unit: str) -> None:
-    if _concrete(value) and not value > 0:
+    if concrete(value) and not value > 0:
         raise ValueError(f"{name} must be > 0 {unit}, got {value!r}")
 
 
 def _check_material(E: float, nu: float) -> None:
     _check_positive("E", E, "Pa")
-    if _concrete(nu) and not -1.0 < nu < 0.5:
+    if concrete(nu) and not -1.0 < nu < 0.5:
         raise ValueError(f"nu (Poisson ratio) must be in (-1, 0.5), got {nu!r}")
 
 
 def _check_groove(d: float, D: float) -> None:
     _check_positive("d (ball diameter)", d, "m")
-    if _concrete(d, D) and not D > d:
+    if concrete(d, D) and not D > d:
         raise ValueError(
             f"D (groove diameter) must exceed the ball diameter d = {d!r} m "
             f"(groove conformity D/d > 1, i.e. radius conformity r/d > 0.5), got D = {D!r} m"

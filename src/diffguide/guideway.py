@@ -22,6 +22,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ._checks import concrete
 from ._types import Array, Float
 from .contact import AbstractContactLaw, HertzBall, PalmgrenRoller
 from .smoothing import element_energy, element_force, element_stiffness
@@ -245,9 +246,9 @@ def four_row_carriage(
         upper_yz, lower_yz, contact_angle_deg, arrangement: see :func:`row_layout`.
         eps_ratio: smoothing length / preload approach.
     """
-    if not capacity > 0:
+    if concrete(capacity) and not capacity > 0:
         raise ValueError(f"capacity (dynamic load capacity C) must be > 0 N, got {capacity!r}")
-    if not 0.0 < preload_fraction < 1.0:
+    if concrete(preload_fraction) and not 0.0 < preload_fraction < 1.0:
         raise ValueError(
             f"preload_fraction must be in (0, 1) (a preload below the capacity C), got "
             f"{preload_fraction!r}"

@@ -14,13 +14,8 @@ Rail 1 is the rail at −Y. The rail coordinate ``s`` is measured along each rai
 under the table centre at the reference position (x = 0).
 """
 
-import numpy as np
-
-from .fe.materials import Material
-from .fe.table import majda2012_table
-from .guideway import majda2012_carriage
+from .build import build_machine
 from .machine import Machine
-from .presets import MAJDA2012_LAYOUT, MAJDA2012_TABLE
 from .rails import AbstractRailProfile, PaperPolynomialRail, StraightRail
 
 #: The paper's stroke: X 700 mm, symmetric about the reference position.
@@ -47,35 +42,15 @@ def majda2012_machine(
         preload_fraction: preload as a fraction of C (default 0.08); may be traced.
         points: control points ``{name: (x, y)}`` on the table top (m), default P1–P5.
     """
-    material = None
-    if E is not None:
-        material = Material(E=E, nu=MAJDA2012_TABLE["nu"], rho=MAJDA2012_TABLE["rho"],
-                            name="cast iron")
-    kwargs = {} if points is None else {"points": points}
-    table_model = majda2012_table(nx, ny, thickness=thickness, material=material, **kwargs)
-    condensed = table_model.condense()
-    carriage = majda2012_carriage(law)
-    if preload_fraction is not None:
-        per_element = preload_fraction * 22.8e3 / (carriage.n_rows * carriage.n_elements)
-        carriage = type(carriage)(
-            carriage.law, carriage.row_yz, carriage.row_normals, carriage.xi, per_element,
-            carriage.eps_ratio, carriage.crowning,
-        )
-    L = MAJDA2012_LAYOUT
-    carriage_x, carriage_rail = [], []
-    for patch in table_model.patches[:-1]:  # carriages, then the nut
-        carriage_x.append(patch.x)
-        carriage_rail.append(int(np.argmin([abs(patch.y - ry) for ry in L["rail_y"]])))
-    d = L["screw_core_diameter"]
-    return Machine(
-        table=condensed,
-        carriage=carriage,
-        carriage_x=np.asarray(carriage_x),
-        carriage_rail=tuple(carriage_rail),
-        point_names=table_model.point_names,
-        points_xy=np.asarray(table_model.points),
-        screw_EA=L["screw_E"] * np.pi * d**2 / 4,
-        screw_length_ref=L["screw_free_length_at_ref"],
+    from .config import default_config
+
+    if law not in ("hertz", "rivin"):
+        raise ValueError(f"law must be 'hertz' or 'rivin', got {law!r}")
+    cfg = default_config()
+    cfg["carriage"]["law"] = law
+    return build_machine(
+        cfg, thickness=thickness, E=E, preload_fraction=preload_fraction, nx=nx, ny=ny,
+        points=points,
     )
 
 

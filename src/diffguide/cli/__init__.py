@@ -9,7 +9,7 @@ import importlib
 import importlib.util
 import sys
 
-_COMMANDS = ("stiffness", "table", "simulate", "fit")
+_COMMANDS = ("config", "stiffness", "table", "simulate", "fit")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -5,6 +5,7 @@ import argparse
 import numpy as np
 
 from ..io import atomic_savefig, atomic_write_text
+from ._common import add_machine_arguments, machine_config
 
 
 def parse_positions(text: str) -> np.ndarray:
@@ -32,7 +33,7 @@ def add_parser(sub) -> None:
         "yaw in µrad = µm/m) at each control point, relative to the reference position x = 0.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    p.add_argument("--preset", default="majda2012", choices=("majda2012",), help="machine")
+    add_machine_arguments(p)
     p.add_argument(
         "--variant", type=int, choices=(1, 2, 3), default=1,
         help="the paper's rail error Δ/2·(x + x²), x in m, Δ = 0.05 mm: 1 rail 1 vertical; "
@@ -47,7 +48,7 @@ def add_parser(sub) -> None:
         "--positions", default="-350:350:71", help="table positions START:STOP:COUNT (mm)"
     )
     p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
-    p.add_argument("--mesh", default="20x10", help="table mesh NXxNY (elements)")
+    p.add_argument("--mesh", help="table mesh NXxNY (elements); default from the machine (20x10)")
     p.add_argument("--out", required=True, help="output CSV (one row per position and point)")
     p.add_argument("--plot", help="output figure (PNG): the six errors against position")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -69,18 +70,22 @@ def run(args) -> int:
 
     from ..io import read_rails_csv
     from ..kinematics import ERROR_NAMES, joint_errors
-    from ..majda2012 import STROKE, majda2012_machine, paper_variant
+    from ..build import build_machine
+    from ..majda2012 import paper_variant
 
+    cfg = machine_config(args)
     positions = parse_positions(args.positions)
-    if np.max(np.abs(positions)) > STROKE / 2 + 1e-12:
+    half_stroke = cfg["machine"]["stroke_mm"] / 2
+    if np.max(np.abs(positions)) * 1e3 > half_stroke + 1e-9:
         raise ValueError(
-            f"--positions must lie within the ±{STROKE / 2 * 1e3:.0f} mm stroke, got {args.positions!r}"
+            f"--positions must lie within the ±{half_stroke:g} mm stroke, got {args.positions!r}"
         )
-    nx, ny = parse_mesh(args.mesh)
+    nx, ny = parse_mesh(args.mesh) if args.mesh else (None, None)
     rails = read_rails_csv(args.rails) if args.rails else paper_variant(args.variant)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
-    say(f"building the {args.preset} machine (table mesh {nx}x{ny}) ...")
-    machine = majda2012_machine(nx=nx, ny=ny)
+    name = args.config or args.preset
+    say(f"building the {name} machine ...")
+    machine = build_machine(cfg, nx=nx, ny=ny)
     if args.rigid_table:
         machine = machine.with_rigid_table()
     say(f"solving the equilibrium at {len(positions)} positions ...")
@@ -111,7 +116,7 @@ def run(args) -> int:
 
         what = f"rails from {args.rails}" if args.rails else f"variant {args.variant}"
         table = "rigid table" if args.rigid_table else "elastic table"
-        fig = plot_joint_errors(positions * 1e3, errs, je.point_names, f"{args.preset}, {what}, {table}")
+        fig = plot_joint_errors(positions * 1e3, errs, je.point_names, f"{name}, {what}, {table}")
         atomic_savefig(fig, args.plot, dpi=110)
         say(f"wrote {args.plot}")
     return 0

@@ -25,6 +25,8 @@ def add_parser(sub) -> None:
         help="carriage: majda2012 (size-25 ball block, Hertz), majda2012-rivin (same block, "
         "the paper's Rivin contact law), roller25 (size-25 roller block)",
     )
+    p.add_argument("--config", metavar="MACHINE.toml",
+                   help="take the carriage from a machine configuration file (overrides --preset)")
     p.add_argument("--max-load", type=float, default=10000.0, help="largest load (N)")
     p.add_argument("--steps", type=int, default=41, help="number of loads from 0 to --max-load")
     p.add_argument("--out", required=True, help="output CSV file")
@@ -51,7 +53,13 @@ def run(args) -> int:
         raise ValueError(f"--max-load must be > 0 N, got {args.max_load}")
     if args.steps < 2:
         raise ValueError(f"--steps must be >= 2, got {args.steps}")
-    carriage = carriage_for(args.preset)
+    if args.config:
+        from ..build import carriage_from_config
+        from ..config import load_config
+
+        carriage = carriage_from_config(load_config(args.config))
+    else:
+        carriage = carriage_for(args.preset)
     loads = np.linspace(0.0, args.max_load, args.steps)
     out = static_characteristics(carriage, loads)
     failed = [

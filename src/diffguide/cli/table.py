@@ -3,6 +3,8 @@
 import argparse
 import sys
 
+from ._common import add_machine_arguments, machine_config
+
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
@@ -12,8 +14,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "carriage footprints (rigid patches on the underside), hold the four carriages fixed and "
         "report the sag under gravity. Units: mm for geometry, µm / µrad for deflections.",
     )
-    p.add_argument("--preset", choices=["majda2012"], default="majda2012",
-                   help="machine preset (default: majda2012, 1000 × 500 × 50 mm cast iron)")
+    add_machine_arguments(p)
     p.add_argument("--nx", type=int, default=None,
                    help="uniform divisions along X (rails) before footprint lines (default 20)")
     p.add_argument("--ny", type=int, default=None,
@@ -29,20 +30,21 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     import numpy as np
 
-    from ..fe import majda2012_table
+    from ..build import table_from_config
     from ..io import atomic_write_text
 
     for name in ("nx", "ny"):
         v = getattr(args, name)
         if v is not None and v < 1:
             raise ValueError(f"--{name} must be an integer >= 1, got {v}")
-    model = majda2012_table(args.nx, args.ny, nut=False)
+    model = table_from_config(machine_config(args), nx=args.nx, ny=args.ny, nut=False)
     cond = model.condense()
     u = np.asarray(cond.node_u0)  # the four carriage reference points held at u = 0
     pts = np.asarray(cond.r0).reshape(-1, 6)
     mesh = model.mesh
     sag = -u[:, 2].min() * 1e6
-    print(f"table {args.preset}: {len(mesh.xs) - 1} x {len(mesh.ys) - 1} shells, "
+    name = args.config or args.preset
+    print(f"table {name}: {len(mesh.xs) - 1} x {len(mesh.ys) - 1} shells, "
           f"{mesh.n_nodes} nodes, {mesh.n_dof} DOF; carriages fixed, gravity "
           f"{model.gravity} m/s²")
     print(f"max sag under gravity: {sag:.3f} µm")
@@ -60,7 +62,7 @@ def run(args) -> int:
         from ..io import atomic_savefig
         from ..plotting.table import plot_table
 
-        fig = plot_table(model, u, title=f"{args.preset}: sag under gravity on four carriages, "
+        fig = plot_table(model, u, title=f"{name}: sag under gravity on four carriages, "
                          f"max {sag:.2f} µm")
         atomic_savefig(fig, args.plot, dpi=120)
         print(f"wrote {args.plot}")

@@ -39,4 +39,8 @@ from .mesh import (
     table_mesh as table_mesh,
 )
 from .shell import shell_load as shell_load, shell_stiffness as shell_stiffness
-from .table import TableModel as TableModel, majda2012_table as majda2012_table
+from .table import (
+    TableModel as TableModel,
+    majda2012_table as majda2012_table,
+    table_model as table_model,
+)

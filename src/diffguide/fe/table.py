@@ -41,6 +41,62 @@ class TableModel(eqx.Module):
         return condense(self.mesh, self.plate, self.patches, self.points, **kwargs)
 
 
+def table_model(
+    *,
+    length: float,
+    width: float,
+    thickness,
+    material: Material,
+    nx: int,
+    ny: int,
+    rail_y: Sequence[float],
+    carriage_x: Sequence[float],
+    footprint: tuple[float, float],
+    points: dict[str, tuple[float, float]],
+    nut_xy: tuple[float, float] | None = (0.0, 0.0),
+    nut_half: tuple[float, float] = (NUT_HALF, NUT_HALF),
+    ribs: Sequence[Rib] = (),
+    gravity: float = 9.81,
+) -> TableModel:
+    """A rectangular table on carriages at ``carriage_x × rail_y`` (and a nut), SI units.
+
+    Args:
+        length, width: plate size (m). thickness: plate thickness (m; may be traced).
+        material: plate material. nx, ny: uniform divisions (refined by footprint/point lines).
+        rail_y: Y of each rail (m). carriage_x: X of the carriages on each rail (m).
+        footprint: carriage footprint (X, Y) bolted to the underside (m).
+        points: control points ``{name: (x, y)}`` on the top surface (m).
+        nut_xy: the screw nut's position (m), or ``None`` for no nut patch.
+        nut_half: half-sizes of the nut flange (m). ribs: ribs under the plate.
+        gravity: (m/s²).
+
+    Returns:
+        :class:`TableModel` with patches ``C{rail}{carriage}`` (rail by rail, carriages in the
+        order of ``carriage_x``), then ``nut``.
+    """
+    hx, hy = 0.5 * footprint[0], 0.5 * footprint[1]
+    patches = [
+        RigidPatch(x=cx, y=ry, half_x=hx, half_y=hy, name=f"C{i + 1}{j + 1}")
+        for i, ry in enumerate(rail_y)
+        for j, cx in enumerate(carriage_x)
+    ]
+    if nut_xy is not None:
+        patches.append(
+            RigidPatch(x=nut_xy[0], y=nut_xy[1], half_x=nut_half[0], half_y=nut_half[1], name="nut")
+        )
+    names = tuple(points)
+    xy = tuple(tuple(map(float, points[k])) for k in names)
+    lx, ly = patch_lines(patches)
+    lx += [p[0] for p in xy]
+    ly += [p[1] for p in xy]
+    mesh = table_mesh(length, width, nx, ny, lines_x=lx, lines_y=ly, ribs=ribs)
+    plate = PlateSection(thickness=thickness, material=material)
+    return TableModel(
+        mesh=mesh, plate=plate, patches=tuple(patches), points=xy, point_names=names,
+        gravity=float(gravity),
+    )
+
+
 def majda2012_table(
     nx: int | None = None,
     ny: int | None = None,
@@ -51,7 +107,7 @@ def majda2012_table(
     material: Material | None = None,
     points: dict[str, tuple[float, float]] | None = None,
 ) -> TableModel:
-    """The ``majda2012`` table (see module docstring).
+    """The ``majda2012`` table (see module docstring; :func:`table_model` with the preset).
 
     Args:
         nx, ny: uniform divisions along X and Y (default 20 × 10, 50 mm elements), >= 1.
@@ -60,39 +116,22 @@ def majda2012_table(
         thickness: plate thickness in m (default 0.05, the preset's equivalent thickness).
         material: plate material (default: the preset's cast iron, E 110 GPa, ν 0.26).
         points: control points ``{name: (x, y)}`` on the top surface (m); default P1..P5.
-
-    Returns:
-        :class:`TableModel` with patches C11, C12 (rail 1, y < 0; x < 0 then x > 0), C21, C22
-        (rail 2), then ``nut``; points P1..P5 on the top surface.
     """
     T, L = MAJDA2012_TABLE, MAJDA2012_LAYOUT
-    nx = T["nx"] if nx is None else nx
-    ny = T["ny"] if ny is None else ny
-    hx, hy = 0.5 * L["carriage_footprint"][0], 0.5 * L["carriage_footprint"][1]
-    patches = [
-        RigidPatch(x=cx, y=ry, half_x=hx, half_y=hy, name=f"C{i + 1}{j + 1}")
-        for i, ry in enumerate(L["rail_y"])
-        for j, cx in enumerate(L["carriage_x"])
-    ]
-    if nut:
-        nx0, ny0 = L["nut_xy"]
-        patches.append(RigidPatch(x=nx0, y=ny0, half_x=NUT_HALF, half_y=NUT_HALF, name="nut"))
-    chosen = MAJDA2012_POINTS if points is None else points
-    names = tuple(chosen)
-    points = tuple(tuple(map(float, chosen[k])) for k in names)
-    lx, ly = patch_lines(patches)
-    lx += [p[0] for p in points]
-    ly += [p[1] for p in points]
-    mesh = table_mesh(T["length"], T["width"], nx, ny, lines_x=lx, lines_y=ly, ribs=ribs)
     if material is None:
         material = Material(E=T["E"], nu=T["nu"], rho=T["rho"], name="cast iron")
-    plate = PlateSection(thickness=T["thickness"] if thickness is None else thickness,
-                         material=material)
-    return TableModel(
-        mesh=mesh,
-        plate=plate,
-        patches=tuple(patches),
-        points=points,
-        point_names=names,
-        gravity=float(L["gravity"]),
+    return table_model(
+        length=T["length"],
+        width=T["width"],
+        thickness=T["thickness"] if thickness is None else thickness,
+        material=material,
+        nx=T["nx"] if nx is None else nx,
+        ny=T["ny"] if ny is None else ny,
+        rail_y=L["rail_y"],
+        carriage_x=L["carriage_x"],
+        footprint=L["carriage_footprint"],
+        points=MAJDA2012_POINTS if points is None else points,
+        nut_xy=L["nut_xy"] if nut else None,
+        ribs=ribs,
+        gravity=L["gravity"],
     )

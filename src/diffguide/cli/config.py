@@ -1,0 +1,37 @@
+"""``diffguide config``: write a machine configuration (TOML) to standard output or a file."""
+
+import argparse
+import sys
+
+from ._common import PRESETS
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "config",
+        help="write a preset's machine configuration (TOML) to edit and pass with --config",
+        description="Print every parameter of a machine as TOML, units in the key names "
+        "(mm, GPa, N, kg/m3, degrees). Edit it and pass it to any command with --config FILE; "
+        "with --check FILE, validate a file instead.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("--preset", default="majda2012", choices=PRESETS, help="machine to write")
+    p.add_argument("--out", help="write to this file instead of standard output")
+    p.add_argument("--check", metavar="MACHINE.toml", help="validate this file and report")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..config import default_config, dump_config, load_config
+    from ..io import atomic_write_text
+
+    if args.check:
+        cfg = load_config(args.check)
+        print(f"{args.check}: valid ({len(cfg['points'])} control points)")
+        return 0
+    text = dump_config(default_config(), title=args.preset)
+    if args.out:
+        atomic_write_text(args.out, text)
+    else:
+        sys.stdout.write(text)
+    return 0

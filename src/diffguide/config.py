@@ -1,0 +1,280 @@
+"""Machine configuration files (TOML): every parameter of a machine, units in the key names.
+
+A configuration is a nested mapping ``{section: {key: value}}``. :data:`SCHEMA` lists every key
+with its default (the ``majda2012`` preset), its kind and its allowed range; a file only needs the
+keys it changes. :func:`load_config` reads and validates a file — every error names the file, the
+key and the allowed range, in one line — and :func:`dump_config` writes one (``diffguide config
+--preset majda2012 > machine.toml``). :func:`diffguide.build.build_machine` turns a configuration
+into a :class:`~diffguide.machine.Machine`.
+
+Units: mm, µm, GPa, N, kg/m³, degrees, as the key names say; converted to SI by the builder.
+"""
+
+import math
+import os
+import tomllib
+from pathlib import Path
+
+from .presets import MAJDA2012_LAYOUT, MAJDA2012_POINTS, MAJDA2012_TABLE
+
+_INF = math.inf
+
+#: ``{section: {key: (default, kind, low, high, help)}}``; kind: "float", "int", "str:a|b",
+#: "pair" (two floats), "list" (floats). Ranges are inclusive unless noted in the help text.
+SCHEMA: dict[str, dict[str, tuple]] = {
+    "table": {
+        "length_mm": (MAJDA2012_TABLE["length"] * 1e3, "float", 50.0, 20000.0, "table length along X"),
+        "width_mm": (MAJDA2012_TABLE["width"] * 1e3, "float", 50.0, 10000.0, "table width along Y"),
+        "thickness_mm": (MAJDA2012_TABLE["thickness"] * 1e3, "float", 1.0, 2000.0,
+                         "equivalent plate thickness"),
+        "E_GPa": (MAJDA2012_TABLE["E"] / 1e9, "float", 1.0, 1000.0, "Young's modulus"),
+        "nu": (MAJDA2012_TABLE["nu"], "float", 0.0, 0.49, "Poisson ratio"),
+        "density_kg_m3": (MAJDA2012_TABLE["rho"], "float", 0.0, 30000.0, "density"),
+        "mesh_nx": (MAJDA2012_TABLE["nx"], "int", 1, 200, "elements along X"),
+        "mesh_ny": (MAJDA2012_TABLE["ny"], "int", 1, 200, "elements along Y"),
+    },
+    "guideway": {
+        "rail_y_mm": (tuple(v * 1e3 for v in MAJDA2012_LAYOUT["rail_y"]), "pair", -5000.0, 5000.0,
+                      "Y of rail 1 and rail 2 (rail 1 first)"),
+        "carriage_x_mm": (tuple(v * 1e3 for v in MAJDA2012_LAYOUT["carriage_x"]), "pair", -10000.0,
+                          10000.0, "X of the two carriages on each rail, from the table centre"),
+        "carriage_footprint_mm": (tuple(v * 1e3 for v in MAJDA2012_LAYOUT["carriage_footprint"]),
+                                  "pair", 5.0, 1000.0, "footprint bolted to the table (X, Y)"),
+    },
+    "carriage": {
+        "law": ("hertz", "str:hertz|rivin|roller", None, None,
+                "contact law: hertz (balls, exact), rivin (the paper's eq. 1), roller (Palmgren)"),
+        "ball_diameter_mm": (3.0, "float", 0.5, 50.0, "ball diameter d"),
+        "groove_conformity": (1.01, "float", 1.0001, 1.5, "groove diameter / ball diameter, D/d"),
+        "roller_length_mm": (6.0, "float", 0.5, 100.0, "effective roller length (law = roller)"),
+        "E_GPa": (210.0, "float", 1.0, 1000.0, "Young's modulus of elements and grooves"),
+        "nu": (0.3, "float", 0.0, 0.49, "Poisson ratio of elements and grooves"),
+        "elements_per_row": (12, "int", 1, 200, "rolling elements per row"),
+        "pitch_mm": (4.0, "float", 0.5, 100.0, "element pitch along the row"),
+        "contact_angle_deg": (45.0, "float", 1.0, 89.0, "load line angle from the vertical"),
+        "arrangement": ("O", "str:O|X", None, None, "O (load lines away from the rail) or X"),
+        "upper_row_yz_mm": ((9.0, -15.0), "pair", -500.0, 500.0,
+                            "|y| and z of the upper rows below the carriage top face"),
+        "lower_row_yz_mm": ((11.5, -23.0), "pair", -500.0, 500.0,
+                            "|y| and z of the lower rows below the carriage top face"),
+        "capacity_N": (22.8e3, "float", 100.0, 1e7, "dynamic load capacity C"),
+        "preload_fraction": (0.08, "float", 1e-4, 0.5, "preload as a fraction of C"),
+        "smoothing_fraction": (0.02, "float", 1e-4, 0.5, "smoothing length ε / preload approach"),
+    },
+    "screw": {
+        "core_diameter_mm": (MAJDA2012_LAYOUT["screw_core_diameter"] * 1e3, "float", 1.0, 500.0,
+                             "screw core diameter"),
+        "E_GPa": (MAJDA2012_LAYOUT["screw_E"] / 1e9, "float", 1.0, 1000.0, "screw Young's modulus"),
+        "free_length_at_ref_mm": (MAJDA2012_LAYOUT["screw_free_length_at_ref"] * 1e3, "float", 1.0,
+                                  50000.0, "fixed bearing to nut at x = 0; grows with x"),
+        "nut_xy_mm": (tuple(v * 1e3 for v in MAJDA2012_LAYOUT["nut_xy"]), "pair", -10000.0, 10000.0,
+                      "nut position under the table"),
+        "nut_footprint_mm": ((50.0, 50.0), "pair", 1.0, 1000.0, "nut flange bolted to the table"),
+    },
+    "machine": {
+        "gravity_m_s2": (MAJDA2012_LAYOUT["gravity"], "float", 0.0, 100.0, "gravity"),
+        "stroke_mm": (700.0, "float", 1.0, 50000.0, "X stroke, symmetric about x = 0"),
+    },
+}
+
+#: Control points: a section of ``name = [x_mm, y_mm]`` on the table top (default P1..P5).
+DEFAULT_POINTS = {k: (v[0] * 1e3, v[1] * 1e3) for k, v in MAJDA2012_POINTS.items()}
+
+
+#: Ribs under the plate: an array of tables ``[[ribs]]`` with these keys (default: none).
+RIB_SCHEMA: dict[str, tuple] = {
+    "axis": ("x", "str:x|y", None, None, "x: along the rails, y: across"),
+    "position_mm": (0.0, "float", -1e5, 1e5, "y of an x-rib, x of a y-rib"),
+    "width_mm": (20.0, "float", 1.0, 1000.0, "rib width"),
+    "depth_mm": (60.0, "float", 1.0, 2000.0, "rib depth below the plate"),
+}
+
+
+def default_config() -> dict:
+    """The ``majda2012`` preset as a configuration (user units)."""
+    cfg = {sec: {k: spec[0] for k, spec in keys.items()} for sec, keys in SCHEMA.items()}
+    cfg["points"] = dict(DEFAULT_POINTS)
+    cfg["ribs"] = []
+    return cfg
+
+
+def _number(value, where, what):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{where}: {what} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"{where}: {what} must be finite, got {value!r}")
+    return float(value)
+
+
+def _check(value, spec, where):
+    _, kind, lo, hi, help_ = spec
+    if kind.startswith("str:"):
+        allowed = kind[4:].split("|")
+        if value not in allowed:
+            raise ValueError(f"{where}: {value!r} is not allowed; allowed: {', '.join(allowed)}")
+        return value
+    if kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f"{where}: must be an integer in [{lo}, {hi}], got {value!r}")
+        if not lo <= value <= hi:
+            raise ValueError(f"{where}: {value} outside the allowed range [{lo}, {hi}]")
+        return value
+    if kind == "float":
+        v = _number(value, where, "value")
+        if not lo <= v <= hi:
+            raise ValueError(f"{where}: {v:g} outside the allowed range [{lo:g}, {hi:g}] ({help_})")
+        return v
+    if kind == "pair":
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            raise ValueError(f"{where}: must be a list of two numbers [a, b], got {value!r}")
+        out = tuple(_number(v, where, "each entry") for v in value)
+        for v in out:
+            if not lo <= v <= hi:
+                raise ValueError(f"{where}: {v:g} outside the allowed range [{lo:g}, {hi:g}] ({help_})")
+        return out
+    raise AssertionError(kind)
+
+
+def validate_config(raw: dict, source: str = "<config>") -> dict:
+    """Merge ``raw`` over the defaults and validate every key; returns the full configuration.
+
+    Raises:
+        ValueError: one line naming ``source``, the key and the allowed range or values.
+    """
+    if not isinstance(raw, dict):
+        raise ValueError(f"{source}: the configuration must be a table of sections")
+    cfg = default_config()
+    for section, body in raw.items():
+        where = f"{source}: [{section}]"
+        if section == "ribs":
+            if not isinstance(body, list):
+                raise ValueError(f"{where}: ribs must be an array of tables, [[ribs]]")
+            cfg["ribs"] = []
+            for i, rib in enumerate(body):
+                if not isinstance(rib, dict):
+                    raise ValueError(f"{where}: rib {i + 1} must be a table")
+                out = {k: spec[0] for k, spec in RIB_SCHEMA.items()}
+                for key, value in rib.items():
+                    if key not in RIB_SCHEMA:
+                        raise ValueError(
+                            f"{source}: key 'ribs[{i + 1}].{key}' is unknown; allowed: "
+                            f"{', '.join(RIB_SCHEMA)}"
+                        )
+                    out[key] = _check(value, RIB_SCHEMA[key], f"{source}: key 'ribs[{i + 1}].{key}'")
+                cfg["ribs"].append(out)
+            continue
+        if section == "points":
+            if not isinstance(body, dict) or not body:
+                raise ValueError(f"{where}: must be a table of name = [x_mm, y_mm] entries")
+            cfg["points"] = {}
+            for name, xy in body.items():
+                spec = (None, "pair", -1e5, 1e5, "point on the table top")
+                cfg["points"][str(name)] = _check(xy, spec, f"{source}: key 'points.{name}'")
+            continue
+        if section not in SCHEMA:
+            raise ValueError(
+                f"{where}: unknown section; allowed: {', '.join([*SCHEMA, 'points', 'ribs'])}"
+            )
+        if not isinstance(body, dict):
+            raise ValueError(f"{where}: must be a table of keys")
+        for key, value in body.items():
+            if key not in SCHEMA[section]:
+                raise ValueError(
+                    f"{source}: key '{section}.{key}' is unknown; allowed: {', '.join(SCHEMA[section])}"
+                )
+            cfg[section][key] = _check(value, SCHEMA[section][key], f"{source}: key '{section}.{key}'")
+    _check_consistency(cfg, source)
+    return cfg
+
+
+def _check_consistency(cfg: dict, source: str) -> None:
+    t, g = cfg["table"], cfg["guideway"]
+    half_l, half_w = t["length_mm"] / 2, t["width_mm"] / 2
+    fx, fy = g["carriage_footprint_mm"]
+    for y in g["rail_y_mm"]:
+        if abs(y) + fy / 2 > half_w:
+            raise ValueError(
+                f"{source}: key 'guideway.rail_y_mm': {y:g} puts a carriage footprint off the "
+                f"table; allowed |y| <= {half_w - fy / 2:g} mm"
+            )
+    if not g["rail_y_mm"][0] < g["rail_y_mm"][1]:
+        raise ValueError(f"{source}: key 'guideway.rail_y_mm': rail 1 must be at the smaller Y")
+    xs = g["carriage_x_mm"]
+    for x in xs:
+        if abs(x) + fx / 2 > half_l:
+            raise ValueError(
+                f"{source}: key 'guideway.carriage_x_mm': {x:g} puts a carriage footprint off the "
+                f"table; allowed |x| <= {half_l - fx / 2:g} mm"
+            )
+    if not xs[1] - xs[0] >= fx:
+        raise ValueError(
+            f"{source}: key 'guideway.carriage_x_mm': the carriages overlap; they must be at "
+            f"least one footprint ({fx:g} mm) apart, first the smaller X"
+        )
+    for i, rib in enumerate(cfg["ribs"]):
+        limit = half_w if rib["axis"] == "x" else half_l
+        if abs(rib["position_mm"]) > limit:
+            raise ValueError(
+                f"{source}: key 'ribs[{i + 1}].position_mm': {rib['position_mm']:g} is off the "
+                f"table; allowed |position| <= {limit:g} mm"
+            )
+    for name, (x, y) in cfg["points"].items():
+        if abs(x) > half_l or abs(y) > half_w:
+            raise ValueError(
+                f"{source}: key 'points.{name}': ({x:g}, {y:g}) mm is off the table "
+                f"(|x| <= {half_l:g}, |y| <= {half_w:g} mm)"
+            )
+    if cfg["machine"]["stroke_mm"] / 2 >= cfg["screw"]["free_length_at_ref_mm"]:
+        raise ValueError(
+            f"{source}: key 'screw.free_length_at_ref_mm': must exceed half the stroke "
+            f"({cfg['machine']['stroke_mm'] / 2:g} mm), or the nut would pass the fixed bearing"
+        )
+
+
+def load_config(path: str | os.PathLike) -> dict:
+    """Read and validate a machine TOML file (see :func:`validate_config`)."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise OSError(f"cannot read config file {path}: {exc.strerror}") from None
+    try:
+        raw = tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a UTF-8 text file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: malformed TOML: {exc}") from None
+    return validate_config(raw, str(path))
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, (tuple, list)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, float):
+        return repr(float(f"{v:.12g}"))
+    return str(v)
+
+
+def dump_config(cfg: dict, title: str = "") -> str:
+    """TOML text of a configuration, each key with its unit and meaning as a comment."""
+    lines = [f"# diffguide machine configuration{': ' + title if title else ''}",
+             "# units are in the key names; every key is optional (defaults: majda2012)", ""]
+    for section, keys in SCHEMA.items():
+        lines.append(f"[{section}]")
+        for key, spec in keys.items():
+            lines.append(f"{key} = {_toml_value(cfg[section][key])}  # {spec[4]}")
+        lines.append("")
+    lines.append("[points]  # control points on the table top: name = [x_mm, y_mm] from its centre")
+    for name, xy in cfg["points"].items():
+        lines.append(f"{name} = {_toml_value(xy)}")
+    lines.append("")
+    if not cfg["ribs"]:
+        lines.append("# ribs under the plate (none); add one table per rib:")
+        lines.append("# [[ribs]]")
+        lines += [f"# {k} = {_toml_value(spec[0])}  # {spec[4]}" for k, spec in RIB_SCHEMA.items()]
+    for rib in cfg["ribs"]:
+        lines.append("[[ribs]]")
+        lines += [f"{k} = {_toml_value(rib[k])}  # {spec[4]}" for k, spec in RIB_SCHEMA.items()]
+    return "\n".join(lines) + "\n"
