@@ -86,6 +86,27 @@ class PaperPolynomialRail(AbstractRailProfile):
         return _in_plane(0.5 * self.delta * (s + s**2), self.plane)
 
 
+class BumpRail(AbstractRailProfile):
+    """A smooth local bump ``e(s) = amplitude·exp(−((s − center)/width)²)`` in one plane.
+
+    Arguments:
+        amplitude: (m). center: (m). width: (m), > 0.
+        plane: ``"vertical"`` or ``"horizontal"``.
+    """
+
+    amplitude: ScalarLike
+    center: ScalarLike = 0.0
+    width: ScalarLike = 0.05
+    plane: str = eqx.field(static=True, default="vertical")
+
+    def __check_init__(self):
+        _check_plane(self.plane)
+
+    def __call__(self, s):
+        s = jnp.asarray(s, dtype=float)
+        return _in_plane(self.amplitude * jnp.exp(-(((s - self.center) / self.width) ** 2)), self.plane)
+
+
 def bspline_basis(u: Float[Array, "..."], n_coeffs: int) -> tuple[Array, Array]:
     """Uniform cubic B-spline basis at knot-space coordinates ``u`` (segment ``i`` is ``[i, i+1)``).
 
