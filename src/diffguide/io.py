@@ -131,12 +131,15 @@ def read_rails_csv(path: str | os.PathLike, *, spacing: float | None = None):
         import numpy as np
 
         s_m = np.asarray(s) * 1e-3
-        out.append(
-            SplineRail.fit(
-                s_m,
-                np.asarray([d[1] for d in data]) * 1e-6,
-                np.asarray([d[2] for d in data]) * 1e-6,
-                spacing=spacing,
+        try:
+            out.append(
+                SplineRail.fit(
+                    s_m,
+                    np.asarray([d[1] for d in data]) * 1e-6,
+                    np.asarray([d[2] for d in data]) * 1e-6,
+                    spacing=spacing,
+                )
             )
-        )
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            _fail(path, None, "s_mm", f"rail {r}: {exc}")
     return tuple(out)

@@ -139,6 +139,10 @@ def bspline_matrix(s, start: float, spacing: float, n_coeffs: int) -> np.ndarray
     return B
 
 
+#: Largest number of spline segments :meth:`SplineRail.fit` builds (bounded memory).
+MAX_SEGMENTS = 5000
+
+
 class SplineRail(AbstractRailProfile):
     r"""Rail deviation as uniform cubic B-splines in both planes (C² smooth).
 
@@ -214,6 +218,12 @@ class SplineRail(AbstractRailProfile):
             spacing = float(np.median(steps))
         lo = s[0] if start is None else min(start, s[0])
         hi = s[-1] if end is None else max(end, s[-1])
+        if not (hi - lo) / spacing <= MAX_SEGMENTS:
+            raise ValueError(
+                f"the knot spacing {spacing:.3g} m over {hi - lo:.3g} m would need more than "
+                f"{MAX_SEGMENTS} spline segments; samples closer than {(hi - lo) / MAX_SEGMENTS:.3g} m "
+                "are not supported"
+            )
         n_seg = max(int(np.ceil((hi - lo) / spacing - 1e-9)), 1)
         n = n_seg + 3
         B = bspline_matrix(s, lo, spacing, n)
