@@ -1,0 +1,26 @@
+"""Regenerate the README figure: the paper's variant 2, elastic vs rigid table.
+
+Run: ``python docs/make_figures.py`` (writes docs/variant2.png).
+"""
+
+from pathlib import Path
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import numpy as np  # noqa: E402
+
+from diffguide.io import atomic_savefig  # noqa: E402
+from diffguide.kinematics import joint_errors  # noqa: E402
+from diffguide.majda2012 import majda2012_machine, paper_variant  # noqa: E402
+from diffguide.plotting.errors import plot_joint_errors  # noqa: E402
+
+machine = majda2012_machine()
+x = np.linspace(-0.35, 0.35, 71)
+elastic = joint_errors(machine, paper_variant(2), x).user_units()
+rigid = joint_errors(machine.with_rigid_table(), paper_variant(2), x).user_units()
+fig = plot_joint_errors(x * 1e3, elastic, machine.point_names,
+                        "majda2012, variant 2 (rail 1 horizontal): elastic table (solid) vs rigid (dashed)",
+                        compare=rigid)
+atomic_savefig(fig, Path(__file__).parent / "variant2.png", dpi=80)
