@@ -1,0 +1,94 @@
+"""CNC compensation tables of joint kinematic errors, for one point on the table.
+
+Volumetric compensation treats the table as a rigid body: the errors of one point, carried to the
+others by rigid-body kinematics, stand for the whole table. :func:`compensation_table` writes the
+errors at the chosen point as a plain-text table in the style of ISG/Heidenhain axis-error
+tables, and :func:`location_warnings` says where the other points depart from that rigid-body
+prediction by more than a tolerance — the paper's conclusion (Majda 2012) made actionable: on a
+deforming table such a table is only valid near the point it was made for.
+
+Table format (whitespace-separated; ``#`` starts a comment)::
+
+    # diffguide compensation table ... units ... point ...
+    X_mm  EXX_um  EYX_um  EZX_um  EAX_urad  EBX_urad  ECX_urad
+    -350.000  0.123 ...
+
+The values are the *errors* (ISO 230-1 signs, relative to the reference position); a controller
+compensates by moving by their negatives.
+"""
+
+import numpy as np
+
+from .kinematics import ERROR_NAMES
+
+_UNITS = ("um", "um", "um", "urad", "urad", "urad")
+
+
+def compensation_table(positions_mm, errors_user, point_names, at: str, source: str = "") -> str:
+    """The compensation table of point ``at``.
+
+    Arguments:
+        positions_mm: (n_pos,) table positions (mm), increasing.
+        errors_user: (n_pos, n_points, 6) errors in µm / µrad.
+        point_names: names of the points (``at`` must be one).
+        at: the point whose errors the table holds.
+        source: a line describing where the errors come from (for the header).
+    """
+    if at not in point_names:
+        raise ValueError(f"--at must be one of the points {', '.join(point_names)}, got {at!r}")
+    j = list(point_names).index(at)
+    head = [
+        "# diffguide compensation table (ISG-style axis error table for the X axis)",
+        f"# point {at}; {source}".rstrip("; "),
+        "# values are errors (ISO 230-1 signs) relative to the reference position;",
+        "# the controller compensates by their negatives. Units: X in mm, EXX EYX EZX in µm,",
+        "# EAX (roll) EBX (pitch) ECX (yaw) in µrad (µm/m).",
+        "X_mm " + " ".join(f"{n}_{u}" for n, u in zip(ERROR_NAMES, _UNITS)),
+    ]
+    rows = [
+        f"{x:9.3f} " + " ".join(f"{v + 0.0:10.4f}" for v in errors_user[i, j])
+        for i, x in enumerate(positions_mm)
+    ]
+    return "\n".join(head + rows) + "\n"
+
+
+def non_rigid_part(errors_user, points_xy, at_index: int):
+    """What volumetric compensation from point ``at`` cannot capture, per point: the errors minus
+    their rigid-body prediction from the errors at ``at``
+    (``t_P = t_at + θ_at × (P − at)``, ``θ_P = θ_at``; µm and µrad, lever arms in m).
+
+    Arguments:
+        errors_user: (n_pos, n_points, 6) in µm / µrad. points_xy: (n_points, 2) in m (all on
+        the table top, so the lever arm has no Z part).
+    """
+    e = np.asarray(errors_user)
+    xy = np.asarray(points_xy)
+    arm = np.zeros((xy.shape[0], 3))
+    arm[:, :2] = xy - xy[at_index]
+    theta = e[:, at_index, 3:]  # (n_pos, 3) µrad
+    predicted_t = e[:, at_index, None, :3] + np.cross(theta[:, None, :], arm[None, :, :])  # µm
+    predicted = np.concatenate([predicted_t, np.broadcast_to(theta[:, None, :], predicted_t.shape)], -1)
+    return e - predicted
+
+
+def location_warnings(
+    errors_user, point_names, points_xy, at: str, tol_um: float = 2.0, tol_urad: float = 5.0
+) -> list[str]:
+    """Points where a rigid-body compensation made at ``at`` is off by more than the tolerance
+    somewhere on the stroke (:func:`non_rigid_part`; µm for EXX/EYX/EZX, µrad for the angles).
+    One message per point and error."""
+    j = list(point_names).index(at)
+    worst = np.max(np.abs(non_rigid_part(errors_user, points_xy, j)), axis=0)
+    out = []
+    for k, name in enumerate(point_names):
+        if k == j:
+            continue
+        for e, (err, unit) in enumerate(zip(ERROR_NAMES, _UNITS)):
+            tol = tol_um if e < 3 else tol_urad
+            if worst[k, e] > tol:
+                out.append(
+                    f"{err} at {name} departs from the rigid-body prediction from {at} by up to "
+                    f"{worst[k, e]:.1f} {unit} (tolerance {tol:g} {unit}): the table deforms; a "
+                    f"compensation made at {at} does not hold at {name}"
+                )
+    return out
