@@ -43,6 +43,7 @@ jax.config.update("jax_enable_x64", True)  # micrometres on metre-scale geometry
 
 import numpy as np
 import matplotlib.pyplot as plt
+plt.rcParams["figure.dpi"] = 60  # keep the committed outputs small
 from diffguide.majda2012 import majda2012_machine, paper_variant
 from diffguide.kinematics import joint_errors, ERROR_NAMES
 from diffguide.plotting.errors import plot_joint_errors

@@ -9,7 +9,7 @@ import importlib
 import importlib.util
 import sys
 
-_COMMANDS = ("config", "stiffness", "table", "simulate", "fit")
+_COMMANDS = ("config", "stiffness", "table", "simulate", "fit", "montecarlo")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -43,8 +43,11 @@ def _glue_negative_ranges(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import matplotlib
+
     from .._precision import enable_x64
 
+    matplotlib.use("Agg")  # files only: no display needed
     enable_x64()
     parser = build_parser()
     args = parser.parse_args(_glue_negative_ranges(sys.argv[1:] if argv is None else list(argv)))

@@ -1,10 +1,7 @@
 """Figures of joint kinematic errors against table position (the paper's Figs. 7–9)."""
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
 _LABELS = (
     ("EXX", "µm", "positioning"),

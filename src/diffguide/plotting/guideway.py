@@ -1,9 +1,6 @@
 """Figures for one carriage: the static characteristic (Majda 2012, Fig. 3)."""
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
 
 def plot_static_characteristic(curves: dict, title: str = ""):

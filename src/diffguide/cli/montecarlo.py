@@ -1,0 +1,193 @@
+"""``diffguide montecarlo``: joint-error distributions for random rails (a tolerance study)."""
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from ..io import atomic_savefig, atomic_write_text
+from .simulate import parse_mesh, parse_positions
+
+_KERNELS = {"se": "squared_exponential", "matern52": "matern52"}
+_PLANES = {
+    "both": ("vertical", "horizontal"),
+    "vertical": ("vertical",),
+    "horizontal": ("horizontal",),
+}
+
+
+def add_parser(sub) -> None:
+    from ..random_rails import MOUNTING_CLASSES
+
+    p = sub.add_parser(
+        "montecarlo",
+        help="distribution of the joint-error ranges and corner roll differences for random rails",
+        description="Draw random rail pairs (a stationary Gaussian process per rail and plane, "
+        "with the given RMS and correlation length, plus a mounting-tolerance class for rail 2), "
+        "solve the sweep for each in batched, compiled chunks, and write per sample the range of "
+        "each joint error at each control point (µm, µrad) and the largest roll difference "
+        "between each pair of corners over the sweep (µrad).",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("--preset", default="majda2012", choices=("majda2012",), help="machine")
+    p.add_argument("--samples", type=int, default=1000, help="number of random rail pairs")
+    p.add_argument("--rail-rms-um", type=float, default=5.0,
+                   help="RMS straightness deviation σ of each rail and plane (µm)")
+    p.add_argument("--corr-mm", type=float, default=200.0,
+                   help="correlation length ℓ of the rail deviation (mm)")
+    p.add_argument("--kernel", choices=tuple(_KERNELS), default="se",
+                   help="covariance: se = squared exponential exp(-τ²/2ℓ²); matern52 = Matérn 5/2")
+    p.add_argument("--planes", choices=tuple(_PLANES), default="both",
+                   help="planes with straightness error")
+    p.add_argument("--mounting", choices=tuple(MOUNTING_CLASSES), default="none",
+                   help="mounting tolerance class of rail 2 relative to rail 1 (parallelism, "
+                   "height difference; size-25 catalogue values)")
+    p.add_argument("--positions", default="-350:350:71",
+                   help="table positions START:STOP:COUNT (mm)")
+    p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
+    p.add_argument("--mesh", default="20x10", help="table mesh NXxNY (elements)")
+    p.add_argument("--chunk", type=int, default=None,
+                   help="samples per compiled call (default: 8 per CPU device, 1024 per GPU)")
+    p.add_argument("--seed", type=int, default=0, help="random seed")
+    p.add_argument("--cpu-devices", type=int, default=None,
+                   help="on CPU, split the cores into this many JAX devices and shard over them "
+                   "(default: one per core; 1 = no sharding)")
+    p.add_argument("--out", required=True, help="output CSV (one row per sample)")
+    p.add_argument("--plot", help="output figure (PNG) of the distributions")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.set_defaults(func=run)
+
+
+class _Progress:
+    """Plain-text progress on stderr: one updating line on a terminal, else a line per ~10 %."""
+
+    def __init__(self, stream, enabled: bool):
+        self.stream, self.enabled = stream, enabled
+        self.tty = enabled and stream.isatty()
+        self.t0 = time.perf_counter()
+        self.first = None  # (time, done) after the first chunk, which includes compilation
+        self.last_tenth = -1
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        text = f"  {done}/{total} samples ({done / total:4.0%}), {now - self.t0:.0f} s"
+        if self.first is None:
+            self.first = (now, done)
+            text += f" (first chunk, with compilation: {now - self.t0:.1f} s)"
+        elif done > self.first[1]:
+            rate = (done - self.first[1]) / max(now - self.first[0], 1e-9)
+            text += f", {rate:.0f} samples/s"
+            if done < total:
+                text += f", about {(total - done) / rate:.0f} s left"
+        if self.tty:
+            self.stream.write("\r" + text.ljust(78) + ("\n" if done == total else ""))
+            self.stream.flush()
+        else:
+            tenth = int(10 * done / total)
+            if tenth != self.last_tenth or done == total:
+                self.last_tenth = tenth
+                print(text, file=self.stream, flush=True)
+
+
+def _check(args) -> None:
+    if not 1 <= args.samples <= 10_000_000:
+        raise ValueError(f"--samples must be in 1..10000000, got {args.samples}")
+    if not (np.isfinite(args.rail_rms_um) and 0 <= args.rail_rms_um <= 1e4):
+        raise ValueError(f"--rail-rms-um must be in 0..10000 µm, got {args.rail_rms_um}")
+    if not (np.isfinite(args.corr_mm) and 1 <= args.corr_mm <= 1e5):
+        raise ValueError(f"--corr-mm must be in 1..100000 mm, got {args.corr_mm}")
+    if args.chunk is not None and not 1 <= args.chunk <= 100_000:
+        raise ValueError(f"--chunk must be in 1..100000, got {args.chunk}")
+    if args.cpu_devices is not None and not 1 <= args.cpu_devices <= 256:
+        raise ValueError(f"--cpu-devices must be in 1..256, got {args.cpu_devices}")
+
+
+def summary(result) -> str:
+    """Percentiles (5, 50, 95 %) of the ranges at each point and of the corner roll differences."""
+    ok = result.converged
+    lines = ["percentiles over converged samples (5 % / 50 % / 95 %):"]
+    from ..kinematics import ERROR_NAMES, USER_UNITS
+
+    head = "  point " + "".join(f"{n + ' ' + u:>24}" for n, u in zip(ERROR_NAMES, USER_UNITS))
+    lines.append(head)
+    for j, p in enumerate(result.point_names):
+        cells = []
+        for k in range(6):
+            values = result.ranges[ok, j, k] * 1e6
+            q = np.percentile(values, [5, 50, 95]) if ok.any() else [np.nan] * 3
+            cells.append(f"{q[0]:7.3g}/{q[1]:7.3g}/{q[2]:7.3g}")
+        lines.append(f"  {p:5} " + "".join(f"{c:>24}" for c in cells))
+    if result.pairs and ok.any():
+        q = np.percentile(result.max_roll_difference[ok] * 1e6, [5, 50, 95])
+        lines.append(
+            f"  largest roll difference between corners: {q[0]:.3g} / {q[1]:.3g} / {q[2]:.3g} µrad"
+        )
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from ..montecarlo import split_cpu_into_devices
+
+    _check(args)
+    if args.cpu_devices is None or args.cpu_devices > 1:
+        split_cpu_into_devices(args.cpu_devices)  # before the first array; no-op afterwards
+
+    from ..majda2012 import STROKE, majda2012_machine
+    from ..montecarlo import batched_sweep
+    from ..random_rails import GaussianRailModel, sample_rails
+
+    positions = parse_positions(args.positions)
+    if np.max(np.abs(positions)) > STROKE / 2 + 1e-12:
+        raise ValueError(
+            f"--positions must lie within the ±{STROKE / 2 * 1e3:.0f} mm stroke, "
+            f"got {args.positions!r}"
+        )
+    nx, ny = parse_mesh(args.mesh)
+    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
+    model = GaussianRailModel(
+        args.rail_rms_um * 1e-6, args.corr_mm * 1e-3, _KERNELS[args.kernel], _PLANES[args.planes]
+    )
+    rails = sample_rails(args.seed, args.samples, model, args.mounting)
+    say(f"building the {args.preset} machine (table mesh {nx}x{ny}) ...")
+    machine = majda2012_machine(nx=nx, ny=ny)
+    if args.rigid_table:
+        machine = machine.with_rigid_table()
+    import jax
+
+    say(
+        f"{args.samples} samples x {len(positions)} positions, rails σ = {args.rail_rms_um:g} µm, "
+        f"ℓ = {args.corr_mm:g} mm ({args.kernel}, {args.planes}), mounting {args.mounting}; "
+        f"{len(jax.devices())} device(s) ({jax.devices()[0].platform}); the first chunk compiles"
+    )
+    result = batched_sweep(
+        machine, rails, positions, chunk_size=args.chunk,
+        progress=_Progress(sys.stderr, not args.quiet),
+    )
+    atomic_write_text(args.out, result.to_csv())
+    say(f"wrote {args.out}")
+    n_bad = int((~result.converged).sum())
+    if n_bad:
+        print(
+            f"diffguide montecarlo: warning: {n_bad} of {result.n_samples} samples did not "
+            "converge (converged = 0 in the CSV; left out of the statistics and the plot)",
+            file=sys.stderr,
+        )
+    say(summary(result))
+    if args.plot:
+        from ..plotting.montecarlo import plot_monte_carlo
+
+        table = "rigid table" if args.rigid_table else "elastic table"
+        title = (
+            f"{args.preset}, {table}: rails σ = {args.rail_rms_um:g} µm, ℓ = {args.corr_mm:g} mm "
+            f"({args.kernel}, {args.planes}), mounting {args.mounting}, {len(positions)} positions"
+        )
+        fig = plot_monte_carlo(result, title)
+        atomic_savefig(fig, args.plot, dpi=110)
+        say(f"wrote {args.plot}")
+    if n_bad == result.n_samples:
+        print("diffguide montecarlo: error: no sample converged", file=sys.stderr)
+        return 3
+    return 0
