@@ -1,0 +1,314 @@
+"""``diffguide fit``: rail straightness profiles from measured pitch, yaw, roll (SPEC §2.5)."""
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+PRESETS = ("majda2012",)
+_S_STEP_MM = 2.0
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "fit",
+        help="identify rail straightness profiles (µm) from measured joint errors (CSV)",
+        description="Fit the vertical and horizontal straightness profiles of both rails to "
+        "measured joint kinematic errors (levels, interferometers) through the elastic machine "
+        "model, by regularised Levenberg-Marquardt (GCV weight), with posterior ±σ bands, an "
+        "identifiability report and the classical rigid-table inversion side by side. Input "
+        "CSV: position_mm,point,x_mm,y_mm,quantity,value,unit[,sigma][,run][,direction]"
+        "[,instrument] (positions and points in mm; values in µm, mm, µm/m, µrad, mrad or "
+        "arcsec). Output folder (written atomically): rails.csv and rails_rigid.csv "
+        "(rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um), fit.csv "
+        "(every input row with fitted and residual, in its unit), report.json, profiles.png, "
+        "curves.png.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("--preset", default="majda2012", choices=PRESETS,
+                   help="machine model (majda2012: 1000 x 500 mm table, rails 340 mm apart)")
+    p.add_argument("--measurements", required=True, metavar="FILE.csv",
+                   help="measurement CSV (see above)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (replaced)")
+    p.add_argument("--knot-spacing-mm", type=float, default=None,
+                   help="B-spline knot spacing of the profiles (mm); default: the carriage's "
+                   "loaded length (48 mm for majda2012)")
+    p.add_argument("--lambda", dest="lam", type=float, default=None,
+                   help="fixed smoothness weight instead of GCV (whitened units, see report)")
+    p.add_argument("--nx", type=int, default=None, help="table mesh divisions along X "
+                   "(default 20)")
+    p.add_argument("--ny", type=int, default=None, help="table mesh divisions along Y "
+                   "(default 10)")
+    p.add_argument("--no-rigid", action="store_true",
+                   help="skip the rigid-table inversion")
+    p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
+    p.add_argument("--truth", metavar="FILE.csv", default=None,
+                   help="known profiles (rail,s_mm,vertical_um,horizontal_um) to score the "
+                   "fits against, e.g. data/majda2012_truth.csv")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.set_defaults(func=run)
+    return p
+
+
+def _say(args, text):
+    if not args.quiet:
+        print(text, flush=True)
+
+
+def _check_inputs(meas, args):
+    from ..majda2012 import STROKE
+    from ..presets import MAJDA2012_TABLE
+
+    half_l, half_w = MAJDA2012_TABLE["length"] / 2, MAJDA2012_TABLE["width"] / 2
+    for name, (x, y) in zip(meas.point_names, meas.points_xy):
+        if abs(x) > half_l or abs(y) > half_w:
+            raise ValueError(
+                f"{meas.source}: point {name!r} at ({x * 1e3:g}, {y * 1e3:g}) mm is off the "
+                f"{args.preset} table (|x| <= {half_l * 1e3:g}, |y| <= {half_w * 1e3:g} mm)")
+    bad = np.abs(meas.position) > STROKE / 2 + 1e-9
+    if bad.any():
+        x = meas.position[bad][0]
+        raise ValueError(f"{meas.source}: position {x * 1e3:g} mm is outside the {args.preset} "
+                         f"stroke (±{STROKE / 2 * 1e3:g} mm)")
+    if len(np.unique(np.round(meas.position, 9))) < 4:
+        raise ValueError(f"{meas.source}: at least 4 distinct positions are needed for a fit")
+    if args.knot_spacing_mm is not None and not (1.0 <= args.knot_spacing_mm <= 1000.0):
+        raise ValueError(f"--knot-spacing-mm must be in [1, 1000] mm, got {args.knot_spacing_mm}")
+    if args.lam is not None and not args.lam > 0:
+        raise ValueError(f"--lambda must be > 0, got {args.lam}")
+    for name in ("nx", "ny"):
+        v = getattr(args, name)
+        if v is not None and not 1 <= v <= 200:
+            raise ValueError(f"--{name} must be an integer in [1, 200], got {v}")
+
+
+def read_truth(path, s_m):
+    """Truth profiles ``(2, 2, len(s))`` (m) interpolated from a truth CSV at ``s`` (m)."""
+    import csv
+
+    rows = {1: [], 2: []}
+    try:
+        with open(path, encoding="utf-8") as fh:
+            lines = [ln for ln in fh if ln.strip() and not ln.startswith("#")]
+        for k, row in enumerate(csv.DictReader(lines), start=2):
+            try:
+                rows[int(row["rail"])].append(
+                    (float(row["s_mm"]), float(row["vertical_um"]), float(row["horizontal_um"])))
+            except (KeyError, ValueError, TypeError) as exc:
+                raise ValueError(f"{path}: row {k}: bad truth row ({exc})") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the file: {exc.strerror or exc}") from None
+    out = np.zeros((2, 2, len(s_m)))
+    for r in (1, 2):
+        if len(rows[r]) < 2:
+            raise ValueError(f"{path}: rail {r} needs at least two rows")
+        a = np.array(sorted(rows[r]))
+        out[r - 1, 0] = np.interp(s_m * 1e3, a[:, 0], a[:, 1]) * 1e-6
+        out[r - 1, 1] = np.interp(s_m * 1e3, a[:, 0], a[:, 2]) * 1e-6
+    return out
+
+
+def _rails_csv(s_m, val, sig) -> str:
+    lines = ["rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um"]
+    for r in range(2):
+        for i, s in enumerate(s_m):
+            lines.append(f"{r + 1},{s * 1e3:.3f},{val[r, 0, i] * 1e6:.5f},"
+                         f"{sig[r, 0, i] * 1e6:.5f},{val[r, 1, i] * 1e6:.5f},"
+                         f"{sig[r, 1, i] * 1e6:.5f}")
+    return "\n".join(lines) + "\n"
+
+
+def _fit_csv(meas, fits) -> str:
+    from ..measurements import ANGULAR_UNITS, LINEAR_UNITS, format_csv
+
+    cols = ["line", "position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit", "run",
+            "direction", "instrument"]
+    for label in fits:
+        cols += [f"fitted{label}", f"residual{label}"]
+    rows = []
+    for r, k in zip(meas.readings, meas.row_of_reading):
+        f = {**LINEAR_UNITS, **ANGULAR_UNITS}[r.unit]
+        row = {"line": r.line, "position_mm": float(r.position * 1e3), "point": r.point,
+               "x_mm": float(r.xy[0] * 1e3), "y_mm": float(r.xy[1] * 1e3),
+               "quantity": r.quantity, "value": float(r.value / f), "unit": r.unit,
+               "run": r.run, "direction": r.direction, "instrument": r.instrument}
+        for label, fit in fits.items():
+            row[f"fitted{label}"] = float(fit.fitted[k] / f)
+            row[f"residual{label}"] = float((r.value - fit.fitted[k]) / f)
+        rows.append(row)
+    return format_csv(rows, tuple(cols))
+
+
+def _summary(fit, meas, seconds) -> dict:
+    from ..measurements import QUANTITIES
+
+    chan = meas.channel_index()
+    channels = []
+    for c, (p, q) in enumerate(meas.channels):
+        sel = chan == c
+        z = fit.residual[sel] / meas.sigma[sel]
+        channels.append({
+            "point": meas.point_names[p], "quantity": QUANTITIES[q],
+            "rms_residual_user": float(np.sqrt(np.mean(fit.residual[sel] ** 2)) * 1e6),
+            "chi2": float(z @ z), "n": int(sel.sum()),
+            "zero_offset_user": (None if not np.isfinite(fit.offsets[c])
+                                 else float(fit.offsets[c] * 1e6)),
+        })
+    return {
+        "model": "rigid table" if fit.rigid else "elastic table",
+        "method": ("classical linear inversion (rigid-body model linearised at straight "
+                   "rails, same gauge, penalty and GCV)" if fit.rigid else
+                   "Levenberg-Marquardt through the elastic model"),
+        "converged": bool(fit.converged), "lm_steps": int(fit.steps),
+        "lambda": fit.lam, "gcv": fit.gcv, "chi2": fit.chi2, "dof": fit.dof,
+        "chi2_per_dof": fit.chi2_dof, "effective_parameters": fit.edf,
+        "knot_spacing_mm": fit.basis.spacing * 1e3, "coefficients_per_profile": fit.basis.n_coeffs,
+        "s_range_mm": [fit.basis.start * 1e3, fit.basis.end * 1e3],
+        "gauge": list(fit.gauge), "channels": channels, "fit_seconds": seconds,
+        "units": "user units: µm for EXX/EYX/EZX, µm/m (µrad) for EAX/EBX/ECX",
+    }
+
+
+def _check_out(out: Path) -> Path:
+    """``out`` resolved; refuse to replace a folder that is not an earlier fit output."""
+    out = out.resolve()
+    if out.exists() and (not out.is_dir() or (any(out.iterdir())
+                                              and not (out / "report.json").exists())):
+        raise ValueError(f"--out {out}: exists and is not an earlier fit output folder; "
+                         "refusing to replace it")
+    return out
+
+
+def _write_dir(out: Path, files: dict[str, object]) -> None:
+    """Write ``files`` ({name: text or figure}) into a temporary folder next to ``out`` and
+    rename it into place; an earlier output folder is replaced only at the very end."""
+    out = _check_out(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    try:
+        for name, content in files.items():
+            if isinstance(content, str):
+                (tmp / name).write_text(content, encoding="utf-8")
+            else:
+                content.savefig(tmp / name, dpi=110)
+        old = None
+        if out.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
+            os.replace(out, old / out.name)
+        os.replace(tmp, out)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def run(args) -> int:
+    from ..inverse import fit_rails, identifiability
+    from ..majda2012 import majda2012_machine
+    from ..measurements import read_measurements
+
+    t_start = time.perf_counter()
+    _check_out(Path(args.out))
+    meas = read_measurements(args.measurements)
+    _check_inputs(meas, args)
+    _say(args, f"{args.measurements}: {len(meas.readings)} readings -> {meas.n} merged rows in "
+               f"{len(meas.channels)} channels at {len(np.unique(meas.position))} positions")
+    points = {n: tuple(map(float, xy)) for n, xy in zip(meas.point_names, meas.points_xy)}
+    machine = majda2012_machine(nx=args.nx, ny=args.ny, points=points)
+    spacing = None if args.knot_spacing_mm is None else args.knot_spacing_mm * 1e-3
+    fits, seconds = {}, {}
+    models = [("", machine)] + ([] if args.no_rigid else [("_rigid", machine.with_rigid_table())])
+    for label, m in models:
+        t = time.perf_counter()
+        fits[label] = fit_rails(m, meas, knot_spacing=spacing, lam=args.lam,
+                                method="linear" if label else "lm")
+        seconds[label] = time.perf_counter() - t
+        f = fits[label]
+        _say(args, f"{'rigid-table' if label else 'elastic'} fit: chi2/dof = {f.chi2_dof:.3f} "
+                   f"(dof {f.dof:.1f}), lambda {f.lam:.3g} (GCV), {f.edf:.1f} effective "
+                   f"parameters, {f.steps} LM steps, converged {f.converged}, "
+                   f"{seconds[label]:.1f} s")
+    elastic = fits[""]
+    if not elastic.converged:
+        raise ValueError("the elastic fit did not converge (see --lambda, --knot-spacing-mm)")
+    basis = elastic.basis
+    s0 = np.ceil(basis.start * 1e3 / _S_STEP_MM - 1e-9) * _S_STEP_MM
+    s_m = np.arange(s0, basis.end * 1e3 + 1e-9, _S_STEP_MM) * 1e-3
+    s_m = np.unique(np.clip(np.concatenate([[basis.start], s_m, [basis.end]]), basis.start,
+                            basis.end))
+    profiles = {label: f.profiles(s_m) for label, f in fits.items()}
+    report = {
+        "command": "diffguide fit", "preset": args.preset,
+        "measurements": {
+            "file": str(args.measurements), "readings": len(meas.readings), "merged_rows": meas.n,
+            "points": {n: [float(x * 1e3), float(y * 1e3)] for n, (x, y) in
+                       zip(meas.point_names, meas.points_xy)},
+            "sigma_sources": sorted(set(meas.sigma_source)),
+        },
+        "elastic": _summary(elastic, meas, seconds[""]),
+        "identifiability": identifiability(elastic, machine),
+    }
+    if "_rigid" in fits:
+        report["rigid_table"] = _summary(fits["_rigid"], meas, seconds["_rigid"])
+        dv = profiles[""][0] - profiles["_rigid"][0]
+        report["elastic_vs_rigid_profile_rms_difference_um"] = {
+            f"rail {r + 1} {pl}": float(np.sqrt(np.mean(dv[r, p] ** 2)) * 1e6)
+            for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))}
+    truth = None
+    if args.truth:
+        raw = read_truth(args.truth, s_m)
+        flat = basis.gauge_fix(s_m, raw.reshape(4, -1), elastic.fix_slope)
+        truth = flat.reshape(2, 2, -1)
+        report["truth"] = {"file": str(args.truth), "rms_error_um": {}, "coverage_2sigma": {}}
+        for label, (val, sig) in profiles.items():
+            name = "rigid_table" if label else "elastic"
+            err = val - truth
+            report["truth"]["rms_error_um"][name] = {
+                f"rail {r + 1} {pl}": float(np.sqrt(np.mean(err[r, p] ** 2)) * 1e6)
+                for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))}
+            report["truth"]["rms_error_um"][name]["all"] = float(np.sqrt(np.mean(err**2)) * 1e6)
+            report["truth"]["coverage_2sigma"][name] = float(np.mean(np.abs(err) <= 2 * sig))
+        report["truth"]["rms_truth_um"] = float(np.sqrt(np.mean(truth**2)) * 1e6)
+    files = {"rails.csv": _rails_csv(s_m, *profiles[""])}
+    if "_rigid" in fits:
+        files["rails_rigid.csv"] = _rails_csv(s_m, *profiles["_rigid"])
+    files["fit.csv"] = _fit_csv(meas, fits)
+    if not args.no_plots:
+        files.update(_figures(meas, fits, profiles, s_m, truth))
+    report["total_seconds"] = time.perf_counter() - t_start
+    files["report.json"] = json.dumps(report, indent=1, allow_nan=False) + "\n"
+    _write_dir(Path(args.out), files)
+    if args.truth:
+        e = report["truth"]["rms_error_um"]
+        _say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
+             + (", rigid table {:.3f} µm".format(e["rigid_table"]["all"]) if "_rigid" in fits
+                else ""))
+    _say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
+    sys.stdout.flush()
+    return 0
+
+
+def _figures(meas, fits, profiles, s_m, truth):
+    from ..measurements import QUANTITIES
+    from ..plotting.fit import plot_curves, plot_profiles
+
+    labels = {"": "elastic", "_rigid": "rigid table"}
+    fig1 = plot_profiles(s_m, {labels[k]: v for k, v in profiles.items()}, truth=truth)
+    chan = meas.channel_index()
+    channels = []
+    for c, (p, q) in enumerate(meas.channels):
+        sel = chan == c
+        unit = "µm" if QUANTITIES[q] in ("EXX", "EYX", "EZX") else "µm/m"
+        rigid = fits["_rigid"].fitted[sel] * 1e6 if "_rigid" in fits else None
+        channels.append((f"{QUANTITIES[q]} at {meas.point_names[p]}", unit,
+                         meas.position[sel] * 1e3, meas.value[sel] * 1e6,
+                         meas.sigma[sel] * 1e6, fits[""].fitted[sel] * 1e6, rigid))
+    fig2 = plot_curves(channels)
+    return {"profiles.png": fig1, "curves.png": fig2}

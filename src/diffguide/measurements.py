@@ -1,0 +1,436 @@
+r"""Measured joint kinematic errors: read, validate and merge a measurement CSV (SPEC §2.5).
+
+File format (UTF-8, comma separated, one header line; blank lines and lines starting with ``#``
+are skipped)::
+
+    position_mm,point,x_mm,y_mm,quantity,value,unit[,sigma][,run][,direction][,instrument]
+
+- ``position_mm``: table position ``x`` (mm). ``point``: the control point's name; ``x_mm``,
+  ``y_mm``: where it is on the table top (mm, from the table centre; the same for every row of
+  a point).
+- ``quantity``: ``EXX``, ``EYX``, ``EZX`` (µm: ``µm``/``um``, ``mm``) or ``EAX``, ``EBX``, ``ECX``
+  (``µm/m``/``um/m``, ``µrad``/``urad``, ``mrad``, ``arcsec``). ``value`` and ``sigma`` (> 0,
+  the standard uncertainty of *one reading*) are in ``unit``.
+- ``run``: a label of the run (default: one run). ``direction``: ``forward``/``+``/``fwd`` or
+  ``backward``/``reverse``/``-``/``bwd`` (default: forward).
+- ``instrument``: ``level`` or ``interferometer``. Default: ``level`` for roll and pitch
+  (``EAX``, ``EBX``), ``interferometer`` otherwise (only an interferometer measures yaw and the
+  linear errors).
+
+Merging (what a metrologist does with ISO 230-2 style runs), per channel = (point, quantity) and
+position:
+
+1. the readings of each direction are averaged over the runs;
+2. the value is the mean of the forward and backward means (so unequal run counts do not bias it;
+   the reversal value, forward − backward, is kept for the report);
+3. the standard uncertainty of one reading is, in this order: the ``sigma`` column; else the
+   repeatability from the scatter — the pooled within-direction standard deviation over *all*
+   positions of the channel, when it has at least :data:`MIN_SCATTER_DOF` degrees of freedom (a
+   per-position scatter from five runs would be too noisy: its inverse square biases χ² by
+   ν/(ν−2)); else the instrument default (:data:`DEFAULT_SIGMA`: 4 µm/m for levels, 2 µm/m for
+   interferometers, 1 µm for linear interferometer optics);
+4. the merged value's σ follows from step 2: ``σ_m² = ¼ (σ²/n_f + σ²/n_b)`` (``σ²/n`` with one
+   direction).
+
+Every row is validated; a bad row raises one ``ValueError`` ``"FILE:LINE: field 'f': ... (allowed
+...)"``. Values are converted to SI (m, rad).
+"""
+
+import csv
+import dataclasses
+import io
+import math
+import os
+from collections import defaultdict
+
+import numpy as np
+
+#: The six joint kinematic errors of the X axis (ISO 230-1), the order of
+#: :data:`diffguide.kinematics.ERROR_NAMES`.
+QUANTITIES = ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX")
+LINEAR = ("EXX", "EYX", "EZX")
+
+#: unit -> factor to SI (m or rad)
+LINEAR_UNITS = {"µm": 1e-6, "um": 1e-6, "μm": 1e-6, "mm": 1e-3}
+ANGULAR_UNITS = {
+    "µm/m": 1e-6, "um/m": 1e-6, "μm/m": 1e-6, "µrad": 1e-6, "urad": 1e-6, "μrad": 1e-6,
+    "mrad": 1e-3, "arcsec": math.pi / (180 * 3600),
+}
+INSTRUMENTS = ("level", "interferometer")
+#: Repeatability of one reading when the file gives no sigma and there are too few runs (SI).
+DEFAULT_SIGMA = {("level", "angular"): 4e-6, ("interferometer", "angular"): 2e-6,
+                 ("interferometer", "linear"): 1e-6}
+#: Degrees of freedom a channel's pooled scatter needs before it replaces the default σ.
+MIN_SCATTER_DOF = 20
+
+REQUIRED = ("position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit")
+OPTIONAL = ("sigma", "run", "direction", "instrument")
+_FORWARD = ("forward", "fwd", "f", "+", "+1", "1", "up")
+_BACKWARD = ("backward", "bwd", "b", "reverse", "rev", "r", "-", "-1", "down")
+_MAX_BYTES = 200 * 1024 * 1024
+
+
+@dataclasses.dataclass(frozen=True)
+class Reading:
+    """One validated row of the file (SI units; ``line`` is its line number)."""
+
+    line: int
+    position: float
+    point: str
+    xy: tuple[float, float]
+    quantity: str
+    value: float
+    unit: str
+    sigma: float | None
+    run: str
+    direction: str  # "forward" or "backward"
+    instrument: str
+
+
+@dataclasses.dataclass(frozen=True)
+class Measurements:
+    """Merged measurements: one row per (position, point, quantity), SI units.
+
+    Attributes:
+        point_names: the control points, in order of first appearance.
+        points_xy: their (x, y) on the table top, ``(p, 2)`` (m).
+        position: table position of each row (m). point: index into ``point_names``.
+        quantity: index into :data:`QUANTITIES`. value: merged value (m or rad).
+        sigma: standard uncertainty of ``value`` (m or rad), > 0.
+        n_readings: readings merged into the row. reversal: forward − backward mean (NaN when
+            the row is not bidirectional). instrument: per row.
+        sigma_source: per row, ``"column"``, ``"scatter"`` or ``"default"``.
+        readings: the validated input rows (empty when built from arrays). row_of_reading:
+            the merged row of each reading.
+        source: file name (for messages).
+    """
+
+    point_names: tuple[str, ...]
+    points_xy: np.ndarray
+    position: np.ndarray
+    point: np.ndarray
+    quantity: np.ndarray
+    value: np.ndarray
+    sigma: np.ndarray
+    n_readings: np.ndarray
+    reversal: np.ndarray
+    instrument: tuple[str, ...]
+    sigma_source: tuple[str, ...]
+    readings: tuple[Reading, ...] = ()
+    row_of_reading: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
+    source: str = "<arrays>"
+
+    def __post_init__(self):
+        n = len(self.position)
+        for name in ("point", "quantity", "value", "sigma", "n_readings", "reversal"):
+            if np.shape(getattr(self, name)) != (n,):
+                got = np.shape(getattr(self, name))
+                raise ValueError(f"{name} must have shape ({n},), got {got}")
+        if len(self.instrument) != n or len(self.sigma_source) != n:
+            raise ValueError("instrument and sigma_source need one entry per row")
+        if np.shape(self.points_xy) != (len(self.point_names), 2):
+            raise ValueError("points_xy must have shape (n_points, 2)")
+        if n == 0:
+            raise ValueError("no measurements")
+        if not (np.all(np.isfinite(self.value)) and np.all(np.isfinite(self.position))):
+            raise ValueError("values and positions must be finite")
+        if not np.all(np.asarray(self.sigma) > 0):
+            raise ValueError("sigma must be > 0")
+
+    @property
+    def n(self) -> int:
+        return len(self.position)
+
+    @property
+    def channels(self) -> list[tuple[int, int]]:
+        """The (point, quantity) pairs present, sorted."""
+        return sorted({(int(p), int(q)) for p, q in zip(self.point, self.quantity)})
+
+    def channel_index(self) -> np.ndarray:
+        """Index of each row's channel in :attr:`channels`."""
+        lookup = {c: k for k, c in enumerate(self.channels)}
+        return np.array([lookup[(int(p), int(q))] for p, q in zip(self.point, self.quantity)])
+
+    def with_values(self, value, sigma=None) -> "Measurements":
+        """The same rows with other values (and σ), e.g. synthetic noise (SI)."""
+        sigma = self.sigma if sigma is None else np.broadcast_to(sigma, (self.n,)).astype(float)
+        return dataclasses.replace(self, value=np.asarray(value, float), sigma=np.asarray(sigma),
+                                   readings=(), row_of_reading=np.zeros(0, int))
+
+    @classmethod
+    def from_arrays(cls, points: dict[str, tuple[float, float]], position, point, quantity,
+                    value, sigma, instrument=None) -> "Measurements":
+        """Merged rows from arrays (SI): ``point`` names, ``quantity`` names, one row each."""
+        names = tuple(points)
+        pidx = np.array([names.index(p) for p in point])
+        qidx = np.array([QUANTITIES.index(q) for q in quantity])
+        n = len(pidx)
+        inst = tuple(instrument) if instrument is not None else tuple(
+            _default_instrument(QUANTITIES[q]) for q in qidx)
+        return cls(names, np.array([points[k] for k in names], float), np.asarray(position, float),
+                   pidx, qidx, np.asarray(value, float), np.broadcast_to(sigma, (n,)).astype(float),
+                   np.ones(n, int), np.full(n, np.nan), inst, ("column",) * n)
+
+
+def _default_instrument(quantity: str) -> str:
+    return "level" if quantity in ("EAX", "EBX") else "interferometer"
+
+
+class _RowError(ValueError):
+    pass
+
+
+def _field_error(field, value, why, allowed=None):
+    text = f"field '{field}': {why}, got {value!r}"
+    if allowed:
+        text += f" (allowed {allowed})"
+    raise _RowError(text)
+
+
+def _number(row, field, unit_hint):
+    raw = row[field].strip()
+    try:
+        v = float(raw)
+    except ValueError:
+        _field_error(field, raw, "not a number", f"a finite number in {unit_hint}")
+    if not math.isfinite(v):
+        _field_error(field, raw, "not finite", f"a finite number in {unit_hint}")
+    return v
+
+
+def _parse_row(row: dict, line: int) -> Reading:
+    position = _number(row, "position_mm", "mm") * 1e-3
+    point = row["point"].strip()
+    if not point:
+        _field_error("point", row["point"], "empty", "a non-empty point name")
+    xy = (_number(row, "x_mm", "mm") * 1e-3, _number(row, "y_mm", "mm") * 1e-3)
+    quantity = row["quantity"].strip().upper()
+    if quantity not in QUANTITIES:
+        _field_error("quantity", row["quantity"], "unknown quantity", ", ".join(QUANTITIES))
+    units = LINEAR_UNITS if quantity in LINEAR else ANGULAR_UNITS
+    unit = row["unit"].strip()
+    key = unit if unit in units else unit.lower()
+    if key not in units:
+        allowed = ", ".join(u for u in units if "μ" not in u)
+        _field_error("unit", unit, f"not a unit of {quantity}", allowed)
+    factor = units[key]
+    value = _number(row, "value", unit) * factor
+    sigma = None
+    if (row.get("sigma") or "").strip():
+        sigma = _number(row, "sigma", unit) * factor
+        if not sigma > 0:
+            _field_error("sigma", row["sigma"], "must be > 0", f"a positive number in {unit}")
+    run = (row.get("run") or "").strip() or "1"
+    d = (row.get("direction") or "").strip().lower() or "forward"
+    if d in _FORWARD:
+        direction = "forward"
+    elif d in _BACKWARD:
+        direction = "backward"
+    else:
+        _field_error("direction", row["direction"], "unknown direction",
+                     "forward/fwd/+, backward/bwd/reverse/-")
+    instrument = (row.get("instrument") or "").strip().lower() or _default_instrument(quantity)
+    if instrument not in INSTRUMENTS:
+        _field_error("instrument", row["instrument"], "unknown instrument", ", ".join(INSTRUMENTS))
+    if instrument == "level" and quantity not in ("EAX", "EBX"):
+        _field_error("instrument", row["instrument"], f"a level cannot measure {quantity}",
+                     "level for EAX/EBX, interferometer for any quantity")
+    return Reading(line, position, point, xy, quantity, value, key, sigma, run, direction,
+                   instrument)
+
+
+def read_readings(path: str | os.PathLike) -> tuple[Reading, ...]:
+    """Validated rows of a measurement CSV (not merged). Raises ``ValueError`` on bad input."""
+    name = os.fspath(path)
+    try:
+        size = os.path.getsize(name)
+        if size > _MAX_BYTES:
+            raise ValueError(f"{name}: file too large ({size} bytes > {_MAX_BYTES})")
+        with open(name, "rb") as fh:
+            data = fh.read()
+    except OSError as exc:
+        raise ValueError(f"{name}: cannot read the file: {exc.strerror or exc}") from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise ValueError(f"{name}:{line}: not UTF-8 text (byte {exc.start})") from None
+    return parse_readings(text, name)
+
+
+def parse_readings(text: str, name: str = "<text>") -> tuple[Reading, ...]:
+    """Validated rows from the text of a measurement CSV (see :func:`read_readings`)."""
+    if "\x00" in text:
+        line = text[: text.index("\x00")].count("\n") + 1
+        raise ValueError(f"{name}:{line}: the file contains a NUL byte (not a CSV text file)")
+    lines = text.splitlines()
+    header, header_line = None, 0
+    readings = []
+    points: dict[str, tuple[tuple[float, float], int]] = {}
+    for number, line in enumerate(lines, start=1):
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        try:
+            fields = next(csv.reader(io.StringIO(line), strict=True))
+        except (csv.Error, StopIteration) as exc:
+            raise ValueError(f"{name}:{number}: not a valid CSV line ({exc})") from None
+        fields = [f.strip() for f in fields]
+        if header is None:
+            header, header_line = [f.lower() for f in fields], number
+            _check_header(header, name, number)
+            continue
+        if len(fields) != len(header):
+            raise ValueError(
+                f"{name}:{number}: {len(fields)} fields, the header (line {header_line}) has "
+                f"{len(header)} ({','.join(header)})"
+            )
+        row = dict(zip(header, fields))
+        try:
+            reading = _parse_row(row, number)
+        except _RowError as exc:
+            raise ValueError(f"{name}:{number}: {exc}") from None
+        prev = points.get(reading.point)
+        if prev is None:
+            points[reading.point] = (reading.xy, number)
+        elif max(abs(a - b) for a, b in zip(prev[0], reading.xy)) > 1e-9:
+            raise ValueError(
+                f"{name}:{number}: field 'x_mm'/'y_mm': point {reading.point!r} is at "
+                f"({reading.xy[0] * 1e3:g}, {reading.xy[1] * 1e3:g}) mm here but at "
+                f"({prev[0][0] * 1e3:g}, {prev[0][1] * 1e3:g}) mm on line {prev[1]} (allowed: "
+                "one location per point name)"
+            )
+        readings.append(reading)
+    if header is None:
+        raise ValueError(f"{name}:1: no header line (expected {','.join(REQUIRED)}[,...])")
+    if not readings:
+        raise ValueError(f"{name}:{header_line}: no data rows after the header")
+    return tuple(readings)
+
+
+def _check_header(header, name, line):
+    allowed = REQUIRED + OPTIONAL
+    for f in header:
+        if f not in allowed:
+            raise ValueError(f"{name}:{line}: unknown column {f!r} (allowed {', '.join(allowed)})")
+    if len(set(header)) != len(header):
+        dup = sorted({f for f in header if header.count(f) > 1})
+        raise ValueError(f"{name}:{line}: duplicate column(s) {', '.join(dup)}")
+    missing = [f for f in REQUIRED if f not in header]
+    if missing:
+        raise ValueError(
+            f"{name}:{line}: missing column(s) {', '.join(missing)} (required "
+            f"{', '.join(REQUIRED)})"
+        )
+
+
+def merge_readings(readings, source: str = "<readings>") -> Measurements:
+    """Merge runs and directions (see the module docstring) into :class:`Measurements`."""
+    readings = tuple(readings)
+    if not readings:
+        raise ValueError(f"{source}: no measurements")
+    names, xy = [], []
+    for r in readings:
+        if r.point not in names:
+            names.append(r.point)
+            xy.append(r.xy)
+    # positions are grouped on a 1 µm grid (files often print 100.0 and 100.0001)
+    groups: dict[tuple, dict[str, list[Reading]]] = defaultdict(lambda: {"forward": [],
+                                                                         "backward": []})
+    for r in readings:
+        groups[(names.index(r.point), QUANTITIES.index(r.quantity), round(r.position * 1e6))][
+            r.direction].append(r)
+    # repeatability of one reading per channel from the within-direction scatter
+    ss, dof = defaultdict(float), defaultdict(int)
+    for (p, q, _), dirs in groups.items():
+        for rows in dirs.values():
+            if len(rows) > 1:
+                v = np.array([r.value for r in rows])
+                ss[(p, q)] += float(np.sum((v - v.mean()) ** 2))
+                dof[(p, q)] += len(rows) - 1
+    keys = sorted(groups, key=lambda k: (k[0], k[1], k[2]))
+    cols = defaultdict(list)
+    row_of = {}
+    for k, key in enumerate(keys):
+        p, q, _ = key
+        dirs = groups[key]
+        rows = dirs["forward"] + dirs["backward"]
+        instruments = {r.instrument for r in rows}
+        if len(instruments) > 1:
+            r0 = rows[-1]
+            raise ValueError(
+                f"{source}:{r0.line}: field 'instrument': {names[p]} {QUANTITIES[q]} at "
+                f"{r0.position * 1e3:g} mm is measured with {sorted(instruments)}; use another "
+                "point name per instrument (allowed: one instrument per point and quantity)"
+            )
+        inst = rows[0].instrument
+        means, var = [], []
+        sources = set()
+        for d in ("forward", "backward"):
+            rs = dirs[d]
+            if not rs:
+                continue
+            n = len(rs)
+            means.append(float(np.mean([r.value for r in rs])))
+            sig = []
+            for r in rs:
+                if r.sigma is not None:
+                    sig.append(r.sigma)
+                    sources.add("column")
+                elif dof[(p, q)] >= MIN_SCATTER_DOF:
+                    sig.append(math.sqrt(ss[(p, q)] / dof[(p, q)]))
+                    sources.add("scatter")
+                else:
+                    kind = "linear" if QUANTITIES[q] in LINEAR else "angular"
+                    sig.append(DEFAULT_SIGMA[(inst, kind)])
+                    sources.add("default")
+            var.append(float(np.sum(np.square(sig))) / n**2)
+        value = float(np.mean(means))
+        sigma = math.sqrt(sum(var)) / len(var)
+        if not sigma > 0:  # a zero pooled scatter (identical runs): fall back to the default
+            kind = "linear" if QUANTITIES[q] in LINEAR else "angular"
+            sigma = DEFAULT_SIGMA[(inst, kind)] / math.sqrt(len(rows))
+            sources = {"default"}
+        cols["position"].append(rows[0].position)
+        cols["point"].append(p)
+        cols["quantity"].append(q)
+        cols["value"].append(value)
+        cols["sigma"].append(sigma)
+        cols["n"].append(len(rows))
+        cols["reversal"].append(means[0] - means[1] if len(means) == 2 else math.nan)
+        cols["instrument"].append(inst)
+        cols["source"].append("+".join(sorted(sources)))
+        for r in rows:
+            row_of[id(r)] = k
+    return Measurements(
+        point_names=tuple(names),
+        points_xy=np.array(xy, float),
+        position=np.array(cols["position"]),
+        point=np.array(cols["point"], int),
+        quantity=np.array(cols["quantity"], int),
+        value=np.array(cols["value"]),
+        sigma=np.array(cols["sigma"]),
+        n_readings=np.array(cols["n"], int),
+        reversal=np.array(cols["reversal"]),
+        instrument=tuple(cols["instrument"]),
+        sigma_source=tuple(cols["source"]),
+        readings=readings,
+        row_of_reading=np.array([row_of[id(r)] for r in readings], int),
+        source=source,
+    )
+
+
+def read_measurements(path: str | os.PathLike) -> Measurements:
+    """Read, validate and merge a measurement CSV (see the module docstring); SI units."""
+    return merge_readings(read_readings(path), source=os.fspath(path))
+
+
+def format_csv(rows: list[dict], columns: tuple[str, ...]) -> str:
+    """A CSV text with ``columns`` from ``rows`` (dicts; floats written with 10 significant
+    digits)."""
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(columns)
+    for row in rows:
+        w.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in (row[c] for c in columns)])
+    return out.getvalue()

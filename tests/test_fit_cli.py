@@ -1,0 +1,111 @@
+"""``diffguide fit`` end to end on the bundled data, scored against the bundled truth; atomic
+output."""
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from diffguide.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "data" / "majda2012_measurements.csv"
+TRUTH = ROOT / "data" / "majda2012_truth.csv"
+
+
+@pytest.fixture(scope="module")
+def out_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fit") / "result"
+    rc = main(["fit", "--preset", "majda2012", "--measurements", str(DATA), "--out", str(out),
+               "--truth", str(TRUTH), "--quiet"])
+    assert rc == 0
+    return out
+
+
+def test_bundled_data_is_small_and_documented():
+    assert DATA.stat().st_size < 1_000_000 and TRUTH.stat().st_size < 1_000_000
+    assert DATA.read_text().startswith("# diffguide synthetic measurement")
+
+
+def test_outputs_and_columns(out_dir):
+    names = {p.name for p in out_dir.iterdir()}
+    assert {"rails.csv", "rails_rigid.csv", "fit.csv", "report.json", "profiles.png",
+            "curves.png"} <= names
+    assert not [p for p in out_dir.parent.iterdir() if p.name.startswith(".")]  # no temp left
+    rails = list(csv.DictReader((out_dir / "rails.csv").open()))
+    assert list(rails[0]) == ["rail", "s_mm", "vertical_um", "vertical_sigma_um",
+                              "horizontal_um", "horizontal_sigma_um"]
+    assert {r["rail"] for r in rails} == {"1", "2"}
+    assert all(float(r["vertical_sigma_um"]) > 0 for r in rails)
+    fit = list(csv.DictReader((out_dir / "fit.csv").open()))
+    n_readings = sum(1 for ln in DATA.read_text().splitlines()[1:]
+                     if ln.strip() and not ln.startswith(("#", "position_mm")))
+    assert len(fit) == n_readings
+    for r in fit[:50]:
+        assert float(r["value"]) - float(r["fitted"]) == pytest.approx(float(r["residual"]),
+                                                                       abs=1e-6)
+    assert (out_dir / "profiles.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_report_against_truth(out_dir):
+    rep = json.loads((out_dir / "report.json").read_text())
+    el, rg = rep["elastic"], rep["rigid_table"]
+    assert el["converged"] and 0.7 < el["chi2_per_dof"] < 1.3
+    assert rg["chi2_per_dof"] > 2 * el["chi2_per_dof"]
+    truth = rep["truth"]
+    # independent check of the report's own numbers: rails.csv against the truth file
+    t = {(int(r["rail"]), round(float(r["s_mm"]), 3)): r
+         for r in csv.DictReader(ln for ln in TRUTH.open() if not ln.startswith("#"))}
+    rails = list(csv.DictReader((out_dir / "rails.csv").open()))
+    s = np.array([float(r["s_mm"]) for r in rails if r["rail"] == "1"])
+    fitted = np.array([[float(r["vertical_um"]) for r in rails if r["rail"] == str(k)]
+                       for k in (1, 2)])
+    true_v = np.array([[np.interp(x, *zip(*sorted((kk[1], float(v["vertical_um"]))
+                                                 for kk, v in t.items() if kk[0] == k)))
+                        for x in s] for k in (1, 2)])
+    true_v -= true_v.mean(axis=1, keepdims=True)
+    sc = s - s.mean()
+    true_v -= np.mean([sc @ tv / (sc @ sc) for tv in true_v]) * sc  # common slope
+    err = np.sqrt(np.mean((fitted - true_v) ** 2))
+    assert err == pytest.approx(np.sqrt(np.mean([truth["rms_error_um"]["elastic"][k] ** 2
+                                                 for k in ("rail 1 vertical",
+                                                           "rail 2 vertical")])), rel=0.02)
+    assert err < 0.15 * np.sqrt(np.mean(true_v**2))
+    # the elastic fit beats the rigid-table inversion on the same data
+    rms = truth["rms_error_um"]
+    assert rms["elastic"]["all"] < 0.5 * rms["rigid_table"]["all"]
+    assert truth["coverage_2sigma"]["elastic"] >= 0.9
+    ident = rep["identifiability"]
+    assert {"gauge", "singular_values", "wavelengths", "regularisation"} <= set(ident)
+
+
+def test_failed_fit_leaves_no_output(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("position_mm,point,x_mm,y_mm,quantity,value,unit\n0,P1,0,0,EBX,x,um/m\n")
+    out = tmp_path / "never"
+    assert main(["fit", "--measurements", str(bad), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}:2: field 'value'" in err
+    assert not out.exists() and list(tmp_path.iterdir()) == [bad]
+
+
+def test_off_table_point_and_foreign_out_dir(tmp_path, capsys):
+    far = tmp_path / "far.csv"
+    far.write_text("position_mm,point,x_mm,y_mm,quantity,value,unit\n0,P9,900,0,EBX,1,um/m\n")
+    assert main(["fit", "--measurements", str(far), "--out", str(tmp_path / "o")]) == 2
+    assert "off the majda2012 table" in capsys.readouterr().err
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "thesis.tex").write_text("precious")
+    assert main(["fit", "--measurements", str(DATA), "--out", str(foreign), "--quiet"]) == 2
+    assert "refusing to replace" in capsys.readouterr().err
+    assert (foreign / "thesis.tex").read_text() == "precious"
+
+
+def test_help_mentions_units(capsys):
+    with pytest.raises(SystemExit):
+        main(["fit", "--help"])
+    text = capsys.readouterr().out
+    assert "--knot-spacing-mm" in text and "µm/m" in text and "--quiet" in text

@@ -1,0 +1,163 @@
+"""Identification of rail profiles against a known truth (data/make_majda2012_measurements.py):
+a non-spline truth, simulated on a finer table mesh (40 x 20) than the fit uses (20 x 10)."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from diffguide.inverse import RailBasis, blind_wavelengths, fit_rails, identifiability
+from diffguide.inverse import fit as fitmod
+from diffguide.measurements import Measurements
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _load_maker():
+    spec = importlib.util.spec_from_file_location(
+        "make_majda2012_measurements", ROOT / "data" / "make_majda2012_measurements.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def case():
+    from diffguide.majda2012 import majda2012_machine
+
+    mk = _load_maker()
+    errors = mk.simulate()  # fine mesh, noise free
+    pos = mk.positions_mm() * 1e-3
+    names = ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX")
+    rows = []
+    for i, x in enumerate(pos):
+        for p, (name, _, _, inst, quantities) in enumerate(mk.SENSORS):
+            for q in quantities:
+                # the σ of a mean of 5 bidirectional runs (10 readings)
+                rows.append((x, name, q, errors[i, p, names.index(q)],
+                             mk.NOISE[inst] * 1e-6 / np.sqrt(2 * mk.RUNS)))
+    x, pt, q, v, s = zip(*rows)
+    meas = Measurements.from_arrays(mk.points(), x, pt, q, np.array(v), np.array(s))
+    machine = majda2012_machine(points=mk.points())
+    fit = fit_rails(machine, meas)
+    return mk, machine, meas, fit
+
+
+def _truth(mk, fit, s):
+    raw = np.array([mk.truth_profile(s, r, pl) for r in (1, 2)
+                    for pl in ("vertical", "horizontal")])
+    return fit.basis.gauge_fix(s, raw, fit.fix_slope).reshape(2, 2, -1)
+
+
+def _determined_grid(fit, report, n=401):
+    s = fit.basis.grid(n)
+    lo = max(p["determined_s_mm"][0] for p in report["profiles"]) * 1e-3
+    hi = min(p["determined_s_mm"][1] for p in report["profiles"]) * 1e-3
+    return s[(s >= lo - 1e-12) & (s <= hi + 1e-12)]
+
+
+def test_noise_free_recovery_within_5_percent(case):
+    mk, machine, meas, fit = case
+    assert fit.converged
+    report = identifiability(fit, machine)
+    s = _determined_grid(fit, report)
+    assert s[-1] - s[0] > 0.9 * (fit.basis.end - fit.basis.start)
+    val, _ = fit.profiles(s)
+    truth = _truth(mk, fit, s)
+    for r in range(2):
+        for p in range(2):
+            rel = np.sqrt(np.mean((val[r, p] - truth[r, p]) ** 2) / np.mean(truth[r, p] ** 2))
+            assert rel < 0.05, (r, p, rel)
+
+
+def test_coverage_and_chi2_over_20_seeds(case):
+    mk, machine, meas, fit0 = case
+    inside, total, chi = 0, 0, []
+    s = fit0.basis.grid(301)
+    truth = _truth(mk, fit0, s)
+    for seed in range(20):
+        rng = np.random.default_rng(1000 + seed)
+        noisy = meas.with_values(meas.value + rng.standard_normal(meas.n) * meas.sigma)
+        fit = fit_rails(machine, noisy)
+        assert fit.converged
+        val, sig = fit.profiles(s)
+        inside += int(np.sum(np.abs(val - truth) <= 2 * sig))
+        total += val.size
+        chi.append(fit.chi2_dof)
+    coverage = inside / total
+    assert coverage >= 0.90, coverage
+    assert min(chi) >= 0.7 and max(chi) <= 1.3, chi
+    # the mean of χ²/dof over seeds is 1 within its sampling error (sd ≈ sqrt(2/dof)/sqrt(20))
+    assert abs(np.mean(chi) - 1) < 4 * np.sqrt(2 / fit0.dof) / np.sqrt(20) + 0.02
+
+
+def test_elastic_fit_beats_rigid_table_inversion(case):
+    mk, machine, meas, fit = case
+    rigid = fit_rails(machine.with_rigid_table(), meas, method="linear")
+    s = fit.basis.grid(301)
+    truth = _truth(mk, fit, s)
+    err_e = np.sqrt(np.mean((fit.profiles(s)[0] - truth) ** 2))
+    err_r = np.sqrt(np.mean((rigid.profiles(s)[0] - truth) ** 2))
+    assert err_e < 0.5 * err_r, (err_e, err_r)
+    assert rigid.chi2_dof > 2 * fit.chi2_dof  # the rigid model cannot explain corner data
+
+
+def test_gauge_modes_invisible_and_report(case):
+    mk, machine, meas, fit = case
+    report = identifiability(fit, machine)
+    modes = {m["mode"]: m["relative_visibility"] for m in report["gauge"]["modes"]}
+    assert modes["common vertical slope of both rails"] < 1e-9
+    assert modes["common horizontal slope of both rails"] < 1e-9
+    # offsets are invisible to first order; the Hertz contacts' load-dependent stiffness
+    # leaves a trace of order (rail error / preload approach)²
+    assert all(v < 1e-2 for k, v in modes.items() if k.startswith("offset"))
+    assert set(fit.gauge) == set(modes)
+    reg = report["regularisation"]
+    assert reg["effective_parameters"] == pytest.approx(fit.edf, rel=1e-6)
+    assert 0 < reg["data_determined_directions"] < reg["unknowns"]
+    for combo in report["wavelengths"]:
+        tr = [t["transfer"] for t in combo["transfer"] if t["transfer"] is not None]
+        assert max(tr) > 0.9  # long waves come back
+    sv = report["singular_values"]["whitened_gauge_fixed"]
+    assert len(sv) == fit.Z.shape[1] and sv == sorted(sv, reverse=True)
+
+
+def test_blind_wavelengths_formulae(case):
+    _, machine, _, _ = case
+    b = blind_wavelengths(machine, 1.0)
+    assert b["carriage_averaging_m"][0] == pytest.approx(12 * 0.004)
+    assert b["pitch_yaw_mean_m"][:2] == pytest.approx([0.32, 0.16])
+    assert b["roll_difference_m"][:2] == pytest.approx([0.64, 0.64 / 3])
+
+
+def test_jacobian_matches_finite_differences(case):
+    _, machine, meas, fit = case
+    prob = fitmod._problem(machine, meas, fit.basis, 0.0)
+    c = fit.coeffs.reshape(-1) * 1e6
+    _, J, _, _ = fitmod._linearise(c, prob)
+    v = np.random.default_rng(0).standard_normal(c.size) * 0.3  # µm
+    h = 1e-3
+    rp = np.asarray(fitmod._linearise(c + h * v, prob)[0])
+    rm = np.asarray(fitmod._linearise(c - h * v, prob)[0])
+    fd = (rp - rm) / (2 * h)
+    assert np.asarray(J) @ v == pytest.approx(fd, rel=1e-4, abs=1e-6 * np.abs(fd).max())
+
+
+def test_basis_penalty_and_gauge():
+    b = RailBasis.covering(-0.5, 0.5, 0.1)
+    assert b.start == -0.5 and b.end == pytest.approx(0.5) and b.n_coeffs == 13
+    s = np.linspace(-0.5, 0.5, 2001)
+    B = b.matrix(s)
+    c = np.linalg.lstsq(B, s**2, rcond=None)[0]  # cubic splines reproduce quadratics
+    assert B @ c == pytest.approx(s**2, abs=1e-12)
+    G = b.penalty_factor()[: len(b.penalty_factor()) // 4, : b.n_coeffs]
+    assert np.sum((G @ c) ** 2) == pytest.approx(4.0 * 1.0, rel=1e-10)  # ∫(2)² ds over 1 m
+    G0 = b.amplitude_factor()[:, : b.n_coeffs]
+    G0 = G0[: len(G0) // 4]
+    assert np.sum((G0 @ c) ** 2) == pytest.approx(2 * 0.5**5 / 5, rel=1e-6)  # ∫s⁴ds / 1 m⁴
+    prof = np.array([1 + 2 * s, 3 - s, 5 + 2 * s + s**2, -s])
+    fixed = b.gauge_fix(s, prof, (True, True))
+    assert np.abs(fixed.mean(axis=1)).max() < 1e-12
+    # the common slope is gone, the differential slope stays
+    assert fixed[0] == pytest.approx(fixed[2] - (s**2 - np.mean(s**2)), abs=1e-12)

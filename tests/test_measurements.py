@@ -1,0 +1,168 @@
+"""Measurement CSV: validation with file:line:field messages, units, merging of runs."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from diffguide.kinematics import ERROR_NAMES
+from diffguide.measurements import (
+    MIN_SCATTER_DOF, QUANTITIES, merge_readings, parse_readings, read_measurements,
+)
+
+HEADER = "position_mm,point,x_mm,y_mm,quantity,value,unit"
+
+
+def _write(tmp_path, text, name="m.csv"):
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def test_quantities_match_kinematics():
+    assert QUANTITIES == ERROR_NAMES
+
+
+@pytest.mark.parametrize("unit, value, si", [
+    ("um/m", 2.0, 2e-6), ("µm/m", 2.0, 2e-6), ("urad", 3.0, 3e-6), ("µrad", 3.0, 3e-6),
+    ("mrad", 0.5, 5e-4), ("arcsec", 1.0, math.pi / 648000),
+])
+def test_angular_units(tmp_path, unit, value, si):
+    m = read_measurements(_write(tmp_path, f"{HEADER}\n0,P1,1,2,EBX,{value},{unit}\n"))
+    assert m.value[0] == pytest.approx(si, rel=1e-12)
+    assert m.points_xy[0] == pytest.approx([1e-3, 2e-3])
+
+
+@pytest.mark.parametrize("unit, si", [("um", 1e-6), ("µm", 1e-6), ("mm", 1e-3)])
+def test_linear_units(tmp_path, unit, si):
+    m = read_measurements(_write(tmp_path, f"{HEADER}\n10,P1,0,0,EZX,1.5,{unit}\n"))
+    assert m.value[0] == pytest.approx(1.5 * si)
+    assert m.position[0] == pytest.approx(0.01)
+    assert m.instrument == ("interferometer",)
+
+
+@pytest.mark.parametrize("row, field, allowed", [
+    ("x,P1,0,0,EBX,1,um/m", "position_mm", "finite number"),
+    ("nan,P1,0,0,EBX,1,um/m", "position_mm", "finite number"),
+    ("0,,0,0,EBX,1,um/m", "point", "non-empty"),
+    ("0,P1,0,inf,EBX,1,um/m", "y_mm", "finite"),
+    ("0,P1,0,0,EQX,1,um/m", "quantity", "EXX, EYX"),
+    ("0,P1,0,0,EBX,1,um", "unit", "um/m"),
+    ("0,P1,0,0,EZX,1,urad", "unit", "mm"),
+    ("0,P1,0,0,EBX,1e999,um/m", "value", "finite"),
+], ids=lambda v: str(v)[:18])
+def test_bad_row_names_file_line_field(tmp_path, row, field, allowed):
+    p = _write(tmp_path, f"# comment\n{HEADER}\n0,P1,0,0,EBX,1,um/m\n{row}\n")
+    with pytest.raises(ValueError) as exc:
+        read_measurements(p)
+    msg = str(exc.value)
+    assert msg.startswith(f"{p}:4: field '{field}'")
+    assert allowed in msg
+
+
+@pytest.mark.parametrize("extra, row, field", [
+    (",sigma", "0,P1,0,0,EBX,1,um/m,-1", "sigma"),
+    (",direction", "0,P1,0,0,EBX,1,um/m,sideways", "direction"),
+    (",instrument", "0,P1,0,0,EBX,1,um/m,theodolite", "instrument"),
+    (",instrument", "0,P1,0,0,ECX,1,um/m,level", "instrument"),
+])
+def test_bad_optional_fields(tmp_path, extra, row, field):
+    p = _write(tmp_path, f"{HEADER}{extra}\n{row}\n")
+    with pytest.raises(ValueError, match=rf"^{p}:2: field '{field}'.*allowed"):
+        read_measurements(p)
+
+
+def test_structural_errors(tmp_path):
+    with pytest.raises(ValueError, match=r":1: unknown column 'sigam'"):
+        read_measurements(_write(tmp_path, HEADER + ",sigam\n"))
+    with pytest.raises(ValueError, match=r":1: missing column\(s\) unit"):
+        read_measurements(_write(tmp_path, "position_mm,point,x_mm,y_mm,quantity,value\n"))
+    with pytest.raises(ValueError, match=r":2: no data rows"):
+        read_measurements(_write(tmp_path, "\n" + HEADER + "\n"))
+    with pytest.raises(ValueError, match=r":3: 6 fields"):
+        read_measurements(_write(tmp_path, HEADER + "\n0,P1,0,0,EBX,1,um/m\n0,P1,0,0,EBX,1\n"))
+    with pytest.raises(ValueError, match=r":3: field 'x_mm'/'y_mm': point 'P1'"):
+        read_measurements(_write(tmp_path, HEADER + "\n0,P1,0,0,EBX,1,um/m\n5,P1,9,0,EBX,1,um/m\n"))
+    with pytest.raises(ValueError, match="cannot read"):
+        read_measurements(tmp_path / "missing.csv")
+    p = tmp_path / "bin.csv"
+    p.write_bytes(HEADER.encode() + b"\n0,P1,0,0,EBX,\xff,um/m\n")
+    with pytest.raises(ValueError, match=r":2: not UTF-8"):
+        read_measurements(p)
+
+
+def _runs_text(values_fwd, values_bwd, sigma=None):
+    head = HEADER + ",run,direction" + (",sigma" if sigma else "")
+    rows = []
+    for run, v in enumerate(values_fwd):
+        rows.append(f"0,P1,0,0,EBX,{v},um/m,{run},forward" + (f",{sigma}" if sigma else ""))
+    for run, v in enumerate(values_bwd):
+        rows.append(f"0,P1,0,0,EBX,{v},um/m,{run},backward" + (f",{sigma}" if sigma else ""))
+    return head + "\n" + "\n".join(rows) + "\n"
+
+
+def test_bidirectional_mean_and_sigma_column(tmp_path):
+    # unequal run counts: the mean of the direction means, not of all readings
+    m = read_measurements(_write(tmp_path, _runs_text([1, 2, 3], [7], sigma=2.0)))
+    assert m.value[0] == pytest.approx(0.5 * (2 + 7) * 1e-6)
+    assert m.reversal[0] == pytest.approx((2 - 7) * 1e-6)
+    # σ² of the mean of two means: ¼ (σ²/3 + σ²/1)
+    assert m.sigma[0] == pytest.approx(0.5 * math.sqrt(4 / 3 + 4) * 1e-6)
+    assert m.sigma_source == ("column",)
+    assert m.n_readings[0] == 4
+
+
+def test_default_sigma_by_instrument(tmp_path):
+    m = read_measurements(_write(tmp_path, _runs_text([1, 2], [3, 4])))
+    assert m.sigma[0] == pytest.approx(4e-6 / 2)  # level, 4 readings
+    assert m.sigma_source == ("default",)
+
+
+def test_sigma_from_pooled_scatter_matches_noise():
+    rng = np.random.default_rng(1)
+    lines = [HEADER + ",run,direction,instrument"]
+    n_pos, runs, sd = 40, 5, 3.0
+    for i in range(n_pos):
+        for run in range(runs):
+            for d in ("forward", "backward"):
+                v = 10 * np.sin(i) + (0.5 if d == "forward" else -0.5) + rng.normal(0, sd)
+                lines.append(f"{i * 10},P5,0,0,ECX,{v:.6f},um/m,{run},{d},interferometer")
+    m = merge_readings(parse_readings("\n".join(lines)))
+    assert n_pos * 2 * (runs - 1) >= MIN_SCATTER_DOF
+    assert set(m.sigma_source) == {"scatter"}
+    per_reading = m.sigma[0] * math.sqrt(2 * runs) * 1e6
+    # pooled sd from 320 degrees of freedom: relative standard error 1/sqrt(2*320) = 4 %
+    assert per_reading == pytest.approx(sd, rel=0.15)
+    assert np.allclose(m.reversal * 1e6, 1.0, atol=4 * sd / math.sqrt(runs / 2))
+    assert m.n == n_pos and np.all(m.n_readings == 2 * runs)
+
+
+def test_row_of_reading_maps_back(tmp_path):
+    m = read_measurements(_write(tmp_path, HEADER + "\n0,A,0,0,EBX,1,um/m\n10,A,0,0,EBX,2,um/m\n"
+                                 "0,A,0,0,EBX,3,um/m\n0,B,1,1,EAX,4,um/m\n"))
+    assert m.point_names == ("A", "B")
+    vals = [m.value[k] for k in m.row_of_reading]
+    assert vals == pytest.approx([2e-6, 2e-6, 2e-6, 4e-6])
+
+
+_FIELD = st.one_of(st.sampled_from(["0", "1e3", "-5", "nan", "inf", "", "P1", "EBX", "ECX",
+                                    "um/m", "mrad", "um", "forward", "-", "level", "1e999",
+                                    '"', "a,b", "\x00"]),
+                   st.text(max_size=6))
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(header=st.lists(st.sampled_from(["position_mm", "point", "x_mm", "y_mm", "quantity",
+                                         "value", "unit", "sigma", "run", "direction",
+                                         "instrument", "bogus"]), min_size=0, max_size=12),
+       rows=st.lists(st.lists(_FIELD, min_size=0, max_size=12), max_size=4))
+def test_fuzz_only_value_errors(header, rows):
+    text = ",".join(header) + "\n" + "\n".join(",".join(r) for r in rows)
+    try:
+        m = merge_readings(parse_readings(text, "fuzz.csv"), "fuzz.csv")
+    except ValueError as exc:
+        assert str(exc).startswith("fuzz.csv")
+    else:
+        assert np.all(np.isfinite(m.value)) and np.all(m.sigma > 0)
