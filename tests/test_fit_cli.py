@@ -19,9 +19,21 @@ TRUTH = ROOT / "data" / "majda2012_truth.csv"
 def out_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("fit") / "result"
     rc = main(["fit", "--preset", "majda2012", "--measurements", str(DATA), "--out", str(out),
-               "--truth", str(TRUTH), "--quiet"])
+               "--truth", str(TRUTH), "--export-compensation", str(out.parent / "comp.txt"),
+               "--at", "P1", "--quiet"])
     assert rc == 0
     return out
+
+
+def test_compensation_table_from_the_fit(out_dir):
+    # the fitted model's errors at P1 over the 700 mm stroke, one row per position
+    rows = [ln.split() for ln in (out_dir.parent / "comp.txt").read_text().splitlines()
+            if not ln.startswith("#")]
+    assert rows[0][:2] == ["X_mm", "EXX_um"] and len(rows) == 72
+    values = np.array(rows[1:], dtype=float)
+    assert values[0, 0] == pytest.approx(-350.0) and values[-1, 0] == pytest.approx(350.0)
+    ref = int(np.argmin(np.abs(values[:, 0])))
+    assert np.all(np.abs(values[ref, 1:]) < 1e-9)  # errors are relative to x = 0
 
 
 def test_bundled_data_is_small_and_documented():

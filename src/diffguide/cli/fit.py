@@ -51,6 +51,20 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--truth", metavar="FILE.csv", default=None,
                    help="known profiles (rail,s_mm,vertical_um,horizontal_um) to score the "
                    "fits against, e.g. data/majda2012_truth.csv")
+    p.add_argument("--config", metavar="MACHINE.toml",
+                   help="machine configuration file (TOML; see 'diffguide config'); overrides "
+                   "--preset")
+    p.add_argument("--export-compensation", metavar="FILE",
+                   help="write a CNC compensation table (X_mm; errors in µm, µrad) predicted by "
+                   "the fitted model for the point --at, over the stroke")
+    p.add_argument("--at", default="P5",
+                   help="point of the compensation table: a measured point or a machine "
+                   "control point (P1..P5 for majda2012)")
+    p.add_argument("--tol-um", type=float, default=2.0,
+                   help="warn where another point's EXX/EYX/EZX depart from the rigid-body "
+                   "prediction from --at by more than this (µm)")
+    p.add_argument("--tol-urad", type=float, default=5.0,
+                   help="warn where another point's EAX/EBX/ECX depart from --at's by more (µrad)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
     return p
@@ -210,9 +224,10 @@ def _write_dir(out: Path, files: dict[str, object]) -> None:
 
 
 def run(args) -> int:
+    from ..build import build_machine
     from ..inverse import fit_rails, identifiability
-    from ..majda2012 import majda2012_machine
     from ..measurements import read_measurements
+    from ._common import machine_config
 
     t_start = time.perf_counter()
     _check_out(Path(args.out))
@@ -221,7 +236,8 @@ def run(args) -> int:
     _say(args, f"{args.measurements}: {len(meas.readings)} readings -> {meas.n} merged rows in "
                f"{len(meas.channels)} channels at {len(np.unique(meas.position))} positions")
     points = {n: tuple(map(float, xy)) for n, xy in zip(meas.point_names, meas.points_xy)}
-    machine = majda2012_machine(nx=args.nx, ny=args.ny, points=points)
+    cfg = machine_config(args)
+    machine = build_machine(cfg, nx=args.nx, ny=args.ny, points=points)
     spacing = None if args.knot_spacing_mm is None else args.knot_spacing_mm * 1e-3
     fits, seconds = {}, {}
     models = [("", machine)] + ([] if args.no_rigid else [("_rigid", machine.with_rigid_table())])
@@ -285,6 +301,8 @@ def run(args) -> int:
     report["total_seconds"] = time.perf_counter() - t_start
     files["report.json"] = json.dumps(report, indent=1, allow_nan=False) + "\n"
     _write_dir(Path(args.out), files)
+    if args.export_compensation:
+        _export_compensation(args, cfg, points, elastic)
     if args.truth:
         e = report["truth"]["rms_error_um"]
         _say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
@@ -312,3 +330,32 @@ def _figures(meas, fits, profiles, s_m, truth):
                          meas.sigma[sel] * 1e6, fits[""].fitted[sel] * 1e6, rigid))
     fig2 = plot_curves(channels)
     return {"profiles.png": fig1, "curves.png": fig2}
+
+
+def _export_compensation(args, cfg, measured_points, fit) -> None:
+    """The fitted model's errors at ``--at`` over the stroke, as a compensation table, with a
+    warning for each point where a rigid-body compensation from ``--at`` would not hold."""
+    from ..build import build_machine
+    from ..compensation import compensation_table, location_warnings
+    from ..io import atomic_write_text
+    from ..kinematics import joint_errors
+
+    points = {k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()}
+    points.update(measured_points)
+    if args.at not in points:
+        raise ValueError(f"--at must be one of the points {', '.join(points)}, got {args.at!r}")
+    machine = build_machine(cfg, nx=args.nx, ny=args.ny, points=points)
+    half = cfg["machine"]["stroke_mm"] / 2
+    x_mm = np.linspace(-half, half, 71)
+    je = joint_errors(machine, fit.rails(), x_mm * 1e-3)
+    if not bool(np.all(np.asarray(je.converged))):
+        raise ValueError("the equilibrium of the fitted model did not converge over the stroke; "
+                         "no compensation table written")
+    errs = je.user_units()
+    text = compensation_table(x_mm, errs, je.point_names, args.at,
+                              f"predicted by the elastic model fitted to {args.measurements}")
+    atomic_write_text(args.export_compensation, text)
+    _say(args, f"wrote {args.export_compensation} (point {args.at})")
+    for w in location_warnings(errs, je.point_names, np.asarray(je.points_xy), args.at,
+                               args.tol_um, args.tol_urad):
+        print(f"diffguide fit: warning: {w}", file=sys.stderr)

@@ -1,10 +1,7 @@
 """Figures of a rail fit: profiles with ±2σ bands, measured vs fitted curves (matplotlib; never
 imported by the core)."""
 
-import matplotlib
-
-matplotlib.use("Agg", force=False)
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 import numpy as np  # noqa: E402
 
 _PLANES = ("vertical", "horizontal")
