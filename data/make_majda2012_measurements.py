@@ -22,7 +22,6 @@ Run ``python data/make_majda2012_measurements.py`` (about 20 s); fixed seed.
 
 import csv
 import io
-import math
 import os
 import sys
 

@@ -1,5 +1,4 @@
 """Build and execute notebooks/04_rail_tolerances.ipynb (cells below)."""
-import sys
 from pathlib import Path
 
 import nbformat

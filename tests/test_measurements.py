@@ -9,7 +9,11 @@ from hypothesis import strategies as st
 
 from diffguide.kinematics import ERROR_NAMES
 from diffguide.measurements import (
-    MIN_SCATTER_DOF, QUANTITIES, merge_readings, parse_readings, read_measurements,
+    MIN_SCATTER_DOF,
+    QUANTITIES,
+    merge_readings,
+    parse_readings,
+    read_measurements,
 )
 
 HEADER = "position_mm,point,x_mm,y_mm,quantity,value,unit"

@@ -76,9 +76,9 @@ def parse_mesh(text: str) -> tuple[int, int]:
 def run(args) -> int:
     import sys
 
+    from ..build import build_machine
     from ..io import read_rails_csv
     from ..kinematics import ERROR_NAMES, joint_errors
-    from ..build import build_machine
     from ..majda2012 import paper_variant
 
     cfg = machine_config(args)

@@ -4,6 +4,11 @@
 model, GCV, posterior covariance) → :mod:`.identify` (what the data determine).
 """
 
-from .basis import PROFILES as PROFILES, RailBasis as RailBasis, profile_label as profile_label
-from .fit import RailFit as RailFit, fit_rails as fit_rails, visited_range as visited_range
-from .identify import blind_wavelengths as blind_wavelengths, identifiability as identifiability
+from .basis import PROFILES as PROFILES
+from .basis import RailBasis as RailBasis
+from .basis import profile_label as profile_label
+from .fit import RailFit as RailFit
+from .fit import fit_rails as fit_rails
+from .fit import visited_range as visited_range
+from .identify import blind_wavelengths as blind_wavelengths
+from .identify import identifiability as identifiability

@@ -44,7 +44,7 @@ from ..kinematics import joint_errors
 from ..machine import Machine
 from ..measurements import QUANTITIES, Measurements
 from ..rails import SplineRail
-from .basis import PLANES, RailBasis, null_space_basis
+from .basis import RailBasis, null_space_basis
 
 _UM = 1e-6
 
