@@ -1,7 +1,8 @@
 r"""Equilibrium of one rigid carriage on its rail under an external wrench.
 
 Unknown: the carriage pose ``q = (t, θ)`` (m, rad) at its origin, less ``tx``: rolling
-elements carry no force along the rail, so the carriage's X position is the drive's business. Equilibrium (the stationary
+elements carry no force along the rail, so the carriage's X position is the drive's business.
+Equilibrium (the stationary
 point of the convex potential :math:`Π(q) = \sum_j φ(a_j(q)) - W·q`):
 
 .. math::  R(q) = \sum_j F(a_j(q))\,G_j + W = 0,
@@ -107,7 +108,9 @@ def solve_carriage(
     require_x64("solve_carriage")
     load = jnp.asarray(load, dtype=float)
     if load.shape != (6,):
-        raise ValueError(f"load must be a 6-vector (Fx, Fy, Fz, Mx, My, Mz), got shape {load.shape}")
+        raise ValueError(
+            f"load must be a 6-vector (Fx, Fy, Fz, Mx, My, Mz), got shape {load.shape}"
+        )
     if rail is None:
         rail = jnp.zeros((carriage.n_elements, 2))
     rail = jnp.asarray(rail, dtype=float)
@@ -121,14 +124,19 @@ def solve_carriage(
     if not free or not set(free) <= set(ALL_FREE):
         raise ValueError(f"free must be a non-empty subset of {ALL_FREE}, got {free!r}")
     S = _selection(free)
-    y0 = jnp.zeros(len(free)) if initial_pose is None else S.T @ jnp.asarray(initial_pose) / POSE_SCALE
+    y0 = (
+        jnp.zeros(len(free))
+        if initial_pose is None
+        else S.T @ jnp.asarray(initial_pose) / POSE_SCALE
+    )
     y, result, steps = solve_equilibrium(
         _potential, _grad_hess, y0, (carriage, load, rail, S), tol=tol, max_steps=max_steps
     )
     pose = S @ y * POSE_SCALE
     a = carriage.approaches(pose, rail)
-    return CarriageSolution(pose=pose, approaches=a, forces=carriage.element_forces(a),
-                            result=result, steps=steps)
+    return CarriageSolution(
+        pose=pose, approaches=a, forces=carriage.element_forces(a), result=result, steps=steps
+    )
 
 
 def rail_under(carriage: Carriage, profile, position: float | Float[Array, ""]):

@@ -67,7 +67,9 @@ def non_rigid_part(errors_user, points_xy, at_index: int):
     arm[:, :2] = xy - xy[at_index]
     theta = e[:, at_index, 3:]  # (n_pos, 3) µrad
     predicted_t = e[:, at_index, None, :3] + np.cross(theta[:, None, :], arm[None, :, :])  # µm
-    predicted = np.concatenate([predicted_t, np.broadcast_to(theta[:, None, :], predicted_t.shape)], -1)
+    predicted = np.concatenate(
+        [predicted_t, np.broadcast_to(theta[:, None, :], predicted_t.shape)], -1
+    )
     return e - predicted
 
 

@@ -23,10 +23,21 @@ _INF = math.inf
 #: "pair" (two floats), "list" (floats). Ranges are inclusive unless noted in the help text.
 SCHEMA: dict[str, dict[str, tuple]] = {
     "table": {
-        "length_mm": (MAJDA2012_TABLE["length"] * 1e3, "float", 50.0, 20000.0, "table length along X"),
+        "length_mm": (
+            MAJDA2012_TABLE["length"] * 1e3,
+            "float",
+            50.0,
+            20000.0,
+            "table length along X",
+        ),
         "width_mm": (MAJDA2012_TABLE["width"] * 1e3, "float", 50.0, 10000.0, "table width along Y"),
-        "thickness_mm": (MAJDA2012_TABLE["thickness"] * 1e3, "float", 1.0, 2000.0,
-                         "equivalent plate thickness"),
+        "thickness_mm": (
+            MAJDA2012_TABLE["thickness"] * 1e3,
+            "float",
+            1.0,
+            2000.0,
+            "equivalent plate thickness",
+        ),
         "E_GPa": (MAJDA2012_TABLE["E"] / 1e9, "float", 1.0, 1000.0, "Young's modulus"),
         "nu": (MAJDA2012_TABLE["nu"], "float", 0.0, 0.49, "Poisson ratio"),
         "density_kg_m3": (MAJDA2012_TABLE["rho"], "float", 0.0, 30000.0, "density"),
@@ -34,16 +45,36 @@ SCHEMA: dict[str, dict[str, tuple]] = {
         "mesh_ny": (MAJDA2012_TABLE["ny"], "int", 1, 200, "elements along Y"),
     },
     "guideway": {
-        "rail_y_mm": (tuple(v * 1e3 for v in MAJDA2012_LAYOUT["rail_y"]), "pair", -5000.0, 5000.0,
-                      "Y of rail 1 and rail 2 (rail 1 first)"),
-        "carriage_x_mm": (tuple(v * 1e3 for v in MAJDA2012_LAYOUT["carriage_x"]), "pair", -10000.0,
-                          10000.0, "X of the two carriages on each rail, from the table centre"),
-        "carriage_footprint_mm": (tuple(v * 1e3 for v in MAJDA2012_LAYOUT["carriage_footprint"]),
-                                  "pair", 5.0, 1000.0, "footprint bolted to the table (X, Y)"),
+        "rail_y_mm": (
+            tuple(v * 1e3 for v in MAJDA2012_LAYOUT["rail_y"]),
+            "pair",
+            -5000.0,
+            5000.0,
+            "Y of rail 1 and rail 2 (rail 1 first)",
+        ),
+        "carriage_x_mm": (
+            tuple(v * 1e3 for v in MAJDA2012_LAYOUT["carriage_x"]),
+            "pair",
+            -10000.0,
+            10000.0,
+            "X of the two carriages on each rail, from the table centre",
+        ),
+        "carriage_footprint_mm": (
+            tuple(v * 1e3 for v in MAJDA2012_LAYOUT["carriage_footprint"]),
+            "pair",
+            5.0,
+            1000.0,
+            "footprint bolted to the table (X, Y)",
+        ),
     },
     "carriage": {
-        "law": ("hertz", "str:hertz|rivin|roller", None, None,
-                "contact law: hertz (balls, exact), rivin (the paper's eq. 1), roller (Palmgren)"),
+        "law": (
+            "hertz",
+            "str:hertz|rivin|roller",
+            None,
+            None,
+            "contact law: hertz (balls, exact), rivin (the paper's eq. 1), roller (Palmgren)",
+        ),
         "ball_diameter_mm": (3.0, "float", 0.5, 50.0, "ball diameter d"),
         "groove_conformity": (1.01, "float", 1.0001, 1.5, "groove diameter / ball diameter, D/d"),
         "roller_length_mm": (6.0, "float", 0.5, 100.0, "effective roller length (law = roller)"),
@@ -53,22 +84,47 @@ SCHEMA: dict[str, dict[str, tuple]] = {
         "pitch_mm": (4.0, "float", 0.5, 100.0, "element pitch along the row"),
         "contact_angle_deg": (45.0, "float", 1.0, 89.0, "load line angle from the vertical"),
         "arrangement": ("O", "str:O|X", None, None, "O (load lines away from the rail) or X"),
-        "upper_row_yz_mm": ((9.0, -15.0), "pair", -500.0, 500.0,
-                            "|y| and z of the upper rows below the carriage top face"),
-        "lower_row_yz_mm": ((11.5, -23.0), "pair", -500.0, 500.0,
-                            "|y| and z of the lower rows below the carriage top face"),
+        "upper_row_yz_mm": (
+            (9.0, -15.0),
+            "pair",
+            -500.0,
+            500.0,
+            "|y| and z of the upper rows below the carriage top face",
+        ),
+        "lower_row_yz_mm": (
+            (11.5, -23.0),
+            "pair",
+            -500.0,
+            500.0,
+            "|y| and z of the lower rows below the carriage top face",
+        ),
         "capacity_N": (22.8e3, "float", 100.0, 1e7, "dynamic load capacity C"),
         "preload_fraction": (0.08, "float", 1e-4, 0.5, "preload as a fraction of C"),
         "smoothing_fraction": (0.02, "float", 1e-4, 0.5, "smoothing length ε / preload approach"),
     },
     "screw": {
-        "core_diameter_mm": (MAJDA2012_LAYOUT["screw_core_diameter"] * 1e3, "float", 1.0, 500.0,
-                             "screw core diameter"),
+        "core_diameter_mm": (
+            MAJDA2012_LAYOUT["screw_core_diameter"] * 1e3,
+            "float",
+            1.0,
+            500.0,
+            "screw core diameter",
+        ),
         "E_GPa": (MAJDA2012_LAYOUT["screw_E"] / 1e9, "float", 1.0, 1000.0, "screw Young's modulus"),
-        "free_length_at_ref_mm": (MAJDA2012_LAYOUT["screw_free_length_at_ref"] * 1e3, "float", 1.0,
-                                  50000.0, "fixed bearing to nut at x = 0; grows with x"),
-        "nut_xy_mm": (tuple(v * 1e3 for v in MAJDA2012_LAYOUT["nut_xy"]), "pair", -10000.0, 10000.0,
-                      "nut position under the table"),
+        "free_length_at_ref_mm": (
+            MAJDA2012_LAYOUT["screw_free_length_at_ref"] * 1e3,
+            "float",
+            1.0,
+            50000.0,
+            "fixed bearing to nut at x = 0; grows with x",
+        ),
+        "nut_xy_mm": (
+            tuple(v * 1e3 for v in MAJDA2012_LAYOUT["nut_xy"]),
+            "pair",
+            -10000.0,
+            10000.0,
+            "nut position under the table",
+        ),
         "nut_footprint_mm": ((50.0, 50.0), "pair", 1.0, 1000.0, "nut flange bolted to the table"),
     },
     "machine": {
@@ -130,7 +186,9 @@ def _check(value, spec, where):
         out = tuple(_number(v, where, "each entry") for v in value)
         for v in out:
             if not lo <= v <= hi:
-                raise ValueError(f"{where}: {v:g} outside the allowed range [{lo:g}, {hi:g}] ({help_})")
+                raise ValueError(
+                    f"{where}: {v:g} outside the allowed range [{lo:g}, {hi:g}] ({help_})"
+                )
         return out
     raise AssertionError(kind)
 
@@ -160,7 +218,9 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
                             f"{source}: key 'ribs[{i + 1}].{key}' is unknown; allowed: "
                             f"{', '.join(RIB_SCHEMA)}"
                         )
-                    out[key] = _check(value, RIB_SCHEMA[key], f"{source}: key 'ribs[{i + 1}].{key}'")
+                    out[key] = _check(
+                        value, RIB_SCHEMA[key], f"{source}: key 'ribs[{i + 1}].{key}'"
+                    )
                 cfg["ribs"].append(out)
             continue
         if section == "points":
@@ -180,9 +240,12 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
         for key, value in body.items():
             if key not in SCHEMA[section]:
                 raise ValueError(
-                    f"{source}: key '{section}.{key}' is unknown; allowed: {', '.join(SCHEMA[section])}"
+                    f"{source}: key '{section}.{key}' is unknown; allowed: "
+                    f"{', '.join(SCHEMA[section])}"
                 )
-            cfg[section][key] = _check(value, SCHEMA[section][key], f"{source}: key '{section}.{key}'")
+            cfg[section][key] = _check(
+                value, SCHEMA[section][key], f"{source}: key '{section}.{key}'"
+            )
     _check_consistency(cfg, source)
     return cfg
 
@@ -259,8 +322,11 @@ def _toml_value(v) -> str:
 
 def dump_config(cfg: dict, title: str = "") -> str:
     """TOML text of a configuration, each key with its unit and meaning as a comment."""
-    lines = [f"# diffguide machine configuration{': ' + title if title else ''}",
-             "# units are in the key names; every key is optional (defaults: majda2012)", ""]
+    lines = [
+        f"# diffguide machine configuration{': ' + title if title else ''}",
+        "# units are in the key names; every key is optional (defaults: majda2012)",
+        "",
+    ]
     for section, keys in SCHEMA.items():
         lines.append(f"[{section}]")
         for key, spec in keys.items():

@@ -1,4 +1,5 @@
-r"""Rolling-element contact laws: Hertz ball in two grooves, Palmgren roller, the paper's Rivin form.
+r"""Rolling-element contact laws: Hertz ball in two grooves, Palmgren roller, the paper's Rivin
+form.
 
 Every law relates the *approach* ``a`` of one rolling element (m; the shortening of the distance
 between the rail groove and the carriage groove along the element's load line, both contacts of

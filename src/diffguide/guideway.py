@@ -167,7 +167,9 @@ class Carriage(eqx.Module):
 
     def energy(self, a: Float[Array, "rows n"]) -> Float[Array, ""]:
         """Stored elastic energy of all elements (J)."""
-        return jnp.sum(element_energy(a, self.law.stiffness_constant(), self.law.exponent, self.eps))
+        return jnp.sum(
+            element_energy(a, self.law.stiffness_constant(), self.law.exponent, self.eps)
+        )
 
     def wrench(self, a: Float[Array, "rows n"]) -> Float[Array, " 6"]:
         """Force (N) and moment (N·m, about the carriage origin) of the elements on the carriage."""

@@ -88,7 +88,12 @@ def read_rails_csv(path: str | os.PathLike, *, spacing: float | None = None):
             header = [h.strip() for h in header]
             missing = [c for c in required if c not in header]
             if missing:
-                _fail(path, 1, missing[0], f"missing column; the header must contain {','.join(required)}")
+                _fail(
+                    path,
+                    1,
+                    missing[0],
+                    f"missing column; the header must contain {','.join(required)}",
+                )
             col = {c: header.index(c) for c in required}
             for line, rec in enumerate(reader, start=2):
                 if not rec or all(not c.strip() for c in rec):
@@ -106,13 +111,19 @@ def read_rails_csv(path: str | os.PathLike, *, spacing: float | None = None):
                         _fail(path, line, c, f"{text!r} is not a finite number")
                     vals[c] = v
                 if vals["rail"] not in (1.0, 2.0):
-                    _fail(path, line, "rail", f"{rec[col['rail']].strip()!r}: allowed values 1 or 2")
+                    _fail(
+                        path, line, "rail", f"{rec[col['rail']].strip()!r}: allowed values 1 or 2"
+                    )
                 if abs(vals["s_mm"]) > 1e5:
-                    _fail(path, line, "s_mm", f"{vals['s_mm']} outside the allowed range ±100000 mm")
+                    _fail(
+                        path, line, "s_mm", f"{vals['s_mm']} outside the allowed range ±100000 mm"
+                    )
                 for c in ("vertical_um", "horizontal_um"):
                     if abs(vals[c]) > 1e4:
                         _fail(path, line, c, f"{vals[c]} outside the allowed range ±10000 µm")
-                rows[int(vals["rail"])].append((vals["s_mm"], vals["vertical_um"], vals["horizontal_um"]))
+                rows[int(vals["rail"])].append(
+                    (vals["s_mm"], vals["vertical_um"], vals["horizontal_um"])
+                )
         except UnicodeDecodeError:
             _fail(path, None, None, "not a UTF-8 text file")
         except csv.Error as exc:

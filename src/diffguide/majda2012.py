@@ -49,12 +49,19 @@ def majda2012_machine(
     cfg = default_config()
     cfg["carriage"]["law"] = law
     return build_machine(
-        cfg, thickness=thickness, E=E, preload_fraction=preload_fraction, nx=nx, ny=ny,
+        cfg,
+        thickness=thickness,
+        E=E,
+        preload_fraction=preload_fraction,
+        nx=nx,
+        ny=ny,
         points=points,
     )
 
 
-def paper_variant(variant: int, delta: float = 0.05e-3) -> tuple[AbstractRailProfile, AbstractRailProfile]:
+def paper_variant(
+    variant: int, delta: float = 0.05e-3
+) -> tuple[AbstractRailProfile, AbstractRailProfile]:
     """Rail profiles (rail 1, rail 2) of the paper's variant 1, 2 or 3 (see module docstring).
 
     Arguments:

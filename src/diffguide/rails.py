@@ -104,7 +104,9 @@ class BumpRail(AbstractRailProfile):
 
     def __call__(self, s):
         s = jnp.asarray(s, dtype=float)
-        return _in_plane(self.amplitude * jnp.exp(-(((s - self.center) / self.width) ** 2)), self.plane)
+        return _in_plane(
+            self.amplitude * jnp.exp(-(((s - self.center) / self.width) ** 2)), self.plane
+        )
 
 
 def bspline_basis(u: Float[Array, "..."], n_coeffs: int) -> tuple[Array, Array]:
@@ -221,7 +223,8 @@ class SplineRail(AbstractRailProfile):
         if not (hi - lo) / spacing <= MAX_SEGMENTS:
             raise ValueError(
                 f"the knot spacing {spacing:.3g} m over {hi - lo:.3g} m would need more than "
-                f"{MAX_SEGMENTS} spline segments; samples closer than {(hi - lo) / MAX_SEGMENTS:.3g} m "
+                f"{MAX_SEGMENTS} spline segments; samples closer than "
+                f"{(hi - lo) / MAX_SEGMENTS:.3g} m "
                 "are not supported"
             )
         n_seg = max(int(np.ceil((hi - lo) / spacing - 1e-9)), 1)
@@ -231,6 +234,7 @@ class SplineRail(AbstractRailProfile):
         lam = smoothing * np.trace(B.T @ B) / max(np.trace(D.T @ D), 1.0)
         A = B.T @ B + lam * D.T @ D
         coeffs = [
-            np.linalg.solve(A, B.T @ np.asarray(v, dtype=float)[order]) for v in (vertical, horizontal)
+            np.linalg.solve(A, B.T @ np.asarray(v, dtype=float)[order])
+            for v in (vertical, horizontal)
         ]
         return cls(float(lo), float(spacing), jnp.asarray(coeffs[0]), jnp.asarray(coeffs[1]))

@@ -35,7 +35,10 @@ def add_parser(sub) -> None:
     )
     add_machine_arguments(p)
     p.add_argument(
-        "--variant", type=int, choices=(1, 2, 3), default=1,
+        "--variant",
+        type=int,
+        choices=(1, 2, 3),
+        default=1,
         help="the paper's rail error Δ/2·(x + x²), x in m, Δ = 0.05 mm: 1 rail 1 vertical; "
         "2 rail 1 horizontal; 3 rail 1 vertical and rail 2 horizontal (ignored with --rails)",
     )
@@ -51,14 +54,25 @@ def add_parser(sub) -> None:
     p.add_argument("--mesh", help="table mesh NXxNY (elements); default from the machine (20x10)")
     p.add_argument("--out", required=True, help="output CSV (one row per position and point)")
     p.add_argument("--plot", help="output figure (PNG): the six errors against position")
-    p.add_argument("--export-compensation", metavar="FILE",
-                   help="also write a CNC compensation table (X_mm, errors in µm/µrad) for --at")
+    p.add_argument(
+        "--export-compensation",
+        metavar="FILE",
+        help="also write a CNC compensation table (X_mm, errors in µm/µrad) for --at",
+    )
     p.add_argument("--at", default="P5", help="the control point of the compensation table")
-    p.add_argument("--tol-um", type=float, default=2.0,
-                   help="warn where another point's EXX/EYX/EZX depart from the rigid-body "
-                   "prediction from --at by more than this (µm)")
-    p.add_argument("--tol-urad", type=float, default=5.0,
-                   help="warn where another point's EAX/EBX/ECX depart from --at's by more (µrad)")
+    p.add_argument(
+        "--tol-um",
+        type=float,
+        default=2.0,
+        help="warn where another point's EXX/EYX/EZX depart from the rigid-body "
+        "prediction from --at by more than this (µm)",
+    )
+    p.add_argument(
+        "--tol-urad",
+        type=float,
+        default=5.0,
+        help="warn where another point's EAX/EBX/ECX depart from --at's by more (µrad)",
+    )
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
 
@@ -118,19 +132,23 @@ def run(args) -> int:
             vals = ",".join(f"{v + 0.0:.6f}" for v in errs[i, j])
             lines.append(f"{x * 1e3:.6g},{name},{xy[j, 0]:.6g},{xy[j, 1]:.6g},{vals}")
     if args.export_compensation and args.at not in je.point_names:
-        raise ValueError(f"--at must be one of the points {', '.join(je.point_names)}, got {args.at!r}")
+        raise ValueError(
+            f"--at must be one of the points {', '.join(je.point_names)}, got {args.at!r}"
+        )
     atomic_write_text(args.out, "\n".join(lines) + "\n")
     say(f"wrote {args.out}")
     if args.export_compensation:
         from ..compensation import compensation_table, location_warnings
 
         what = f"rails {args.rails}" if args.rails else f"variant {args.variant}"
-        text = compensation_table(positions * 1e3, errs, je.point_names, args.at,
-                                  f"simulated, {name}, {what}")
+        text = compensation_table(
+            positions * 1e3, errs, je.point_names, args.at, f"simulated, {name}, {what}"
+        )
         atomic_write_text(args.export_compensation, text)
         say(f"wrote {args.export_compensation}")
-        warnings = location_warnings(errs, je.point_names, np.asarray(je.points_xy), args.at,
-                                     args.tol_um, args.tol_urad)
+        warnings = location_warnings(
+            errs, je.point_names, np.asarray(je.points_xy), args.at, args.tol_um, args.tol_urad
+        )
         for w in warnings:
             print(f"diffguide simulate: warning: {w}", file=sys.stderr)
     if args.plot:
