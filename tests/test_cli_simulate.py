@@ -10,8 +10,24 @@ from diffguide.cli import main
 
 def test_stiffness_command_writes_fig3_csv(tmp_path, capsys):
     out, png = tmp_path / "s.csv", tmp_path / "s.png"
-    assert main(["stiffness", "--preset", "majda2012", "--out", str(out), "--plot", str(png),
-                 "--steps", "5", "--max-load", "4000"]) == 0
+    assert (
+        main(
+            [
+                "stiffness",
+                "--preset",
+                "majda2012",
+                "--out",
+                str(out),
+                "--plot",
+                str(png),
+                "--steps",
+                "5",
+                "--max-load",
+                "4000",
+            ]
+        )
+        == 0
+    )
     rows = list(csv.DictReader(out.open()))
     assert {r["direction"] for r in rows} == {"down", "up", "lateral"}
     assert list(rows[0]) == ["direction", "load_N", "deflection_um"]
@@ -22,11 +38,38 @@ def test_stiffness_command_writes_fig3_csv(tmp_path, capsys):
 
 def test_simulate_writes_one_row_per_position_and_point(tmp_path):
     out, png = tmp_path / "e.csv", tmp_path / "e.png"
-    assert main(["simulate", "--variant", "2", "--positions", "-300:300:5", "--mesh", "10x5",
-                 "--out", str(out), "--plot", str(png), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--variant",
+                "2",
+                "--positions",
+                "-300:300:5",
+                "--mesh",
+                "10x5",
+                "--out",
+                str(out),
+                "--plot",
+                str(png),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     rows = list(csv.DictReader(out.open()))
-    assert list(rows[0]) == ["position_mm", "point", "x_mm", "y_mm", "EXX_um", "EYX_um",
-                             "EZX_um", "EAX_urad", "EBX_urad", "ECX_urad"]
+    assert list(rows[0]) == [
+        "position_mm",
+        "point",
+        "x_mm",
+        "y_mm",
+        "EXX_um",
+        "EYX_um",
+        "EZX_um",
+        "EAX_urad",
+        "EBX_urad",
+        "ECX_urad",
+    ]
     assert len(rows) == 5 * 5
     # the reference position x = 0 is in the sweep: every error is zero there
     at_ref = [r for r in rows if float(r["position_mm"]) == 0.0]
@@ -39,16 +82,25 @@ def test_simulate_reads_rails_csv_same_as_the_paper_variant(tmp_path):
     s = np.linspace(-700, 700, 141)
     i_um = 0.5 * 50.0 * (s / 1000 + (s / 1000) ** 2)  # Δ/2·(x/1000 + (x/1000)²), Δ = 50 µm
     rails = tmp_path / "rails.csv"
-    rails.write_text("rail,s_mm,vertical_um,horizontal_um\n"
-                     + "".join(f"1,{a},{b},0\n" for a, b in zip(s, i_um)))
+    rails.write_text(
+        "rail,s_mm,vertical_um,horizontal_um\n" + "".join(f"1,{a},{b},0\n" for a, b in zip(s, i_um))
+    )
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
     common = ["--positions", "-350:350:8", "--mesh", "10x5", "--quiet"]
     assert main(["simulate", "--variant", "1", "--out", str(a), *common]) == 0
     assert main(["simulate", "--rails", str(rails), "--out", str(b), *common]) == 0
-    va = np.array([[float(v) for v in r.values() if v not in ("P1", "P2", "P3", "P4", "P5")]
-                   for r in csv.DictReader(a.open())])
-    vb = np.array([[float(v) for v in r.values() if v not in ("P1", "P2", "P3", "P4", "P5")]
-                   for r in csv.DictReader(b.open())])
+    va = np.array(
+        [
+            [float(v) for v in r.values() if v not in ("P1", "P2", "P3", "P4", "P5")]
+            for r in csv.DictReader(a.open())
+        ]
+    )
+    vb = np.array(
+        [
+            [float(v) for v in r.values() if v not in ("P1", "P2", "P3", "P4", "P5")]
+            for r in csv.DictReader(b.open())
+        ]
+    )
     # a quadratic is reproduced exactly by the cubic spline except for the interpolation's end
     # effects far outside the visited range: agreement to 1e-4 µm / µrad
     np.testing.assert_allclose(vb, va, atol=1e-4)
@@ -60,7 +112,10 @@ def test_simulate_reads_rails_csv_same_as_the_paper_variant(tmp_path):
         ("", "empty file"),
         ("rail,s_mm,vertical_um\n1,0,0\n", "field 'horizontal_um': missing column"),
         ("rail,s_mm,vertical_um,horizontal_um\n3,0,0,0\n", ":2: field 'rail'"),
-        ("rail,s_mm,vertical_um,horizontal_um\n1,abc,0,0\n", ":2: field 's_mm': 'abc' is not a number"),
+        (
+            "rail,s_mm,vertical_um,horizontal_um\n1,abc,0,0\n",
+            ":2: field 's_mm': 'abc' is not a number",
+        ),
         ("rail,s_mm,vertical_um,horizontal_um\n1,0,nan,0\n", "field 'vertical_um'"),
         ("rail,s_mm,vertical_um,horizontal_um\n1,0,0,0\n1,10,0,0\n", "at least 4"),
         ("rail,s_mm,vertical_um,horizontal_um\n1,0,0\n", ":2: 3 fields, expected 4"),

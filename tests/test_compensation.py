@@ -26,12 +26,22 @@ def test_rigid_table_has_no_non_rigid_part(machine):
 
 def test_elastic_table_warns_about_roll_at_the_corners(machine):
     je = joint_errors(machine, paper_variant(2), X)
-    w = location_warnings(je.user_units(), je.point_names, np.asarray(je.points_xy), "P5",
-                          tol_um=2.0, tol_urad=5.0)
+    w = location_warnings(
+        je.user_units(), je.point_names, np.asarray(je.points_xy), "P5", tol_um=2.0, tol_urad=5.0
+    )
     assert any(m.startswith("EAX at P1") for m in w)
     # a tolerance above every departure silences it
-    assert location_warnings(je.user_units(), je.point_names, np.asarray(je.points_xy), "P5",
-                             tol_um=1e3, tol_urad=1e3) == []
+    assert (
+        location_warnings(
+            je.user_units(),
+            je.point_names,
+            np.asarray(je.points_xy),
+            "P5",
+            tol_um=1e3,
+            tol_urad=1e3,
+        )
+        == []
+    )
 
 
 def test_table_text_parses_back(machine):
@@ -49,10 +59,41 @@ def test_table_text_parses_back(machine):
 
 def test_simulate_exports_compensation(tmp_path, capsys):
     comp = tmp_path / "comp.txt"
-    rc = main(["simulate", "--variant", "2", "--mesh", "10x5", "--positions", "-300:300:5",
-               "--out", str(tmp_path / "e.csv"), "--export-compensation", str(comp), "--at", "P5",
-               "--quiet"])
+    rc = main(
+        [
+            "simulate",
+            "--variant",
+            "2",
+            "--mesh",
+            "10x5",
+            "--positions",
+            "-300:300:5",
+            "--out",
+            str(tmp_path / "e.csv"),
+            "--export-compensation",
+            str(comp),
+            "--at",
+            "P5",
+            "--quiet",
+        ]
+    )
     assert rc == 0 and comp.exists()
     assert "warning: EAX at P1" in capsys.readouterr().err
-    assert main(["simulate", "--mesh", "10x5", "--positions", "-300:300:5", "--out",
-                 str(tmp_path / "f.csv"), "--export-compensation", str(comp), "--at", "Q"]) == 2
+    assert (
+        main(
+            [
+                "simulate",
+                "--mesh",
+                "10x5",
+                "--positions",
+                "-300:300:5",
+                "--out",
+                str(tmp_path / "f.csv"),
+                "--export-compensation",
+                str(comp),
+                "--at",
+                "Q",
+            ]
+        )
+        == 2
+    )

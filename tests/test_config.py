@@ -29,14 +29,18 @@ def test_config_machine_equals_preset_machine(tmp_path):
 
 def test_a_thicker_table_in_the_file_changes_the_result(tmp_path):
     path = tmp_path / "m.toml"
-    path.write_text("[table]\nthickness_mm = 80\nmesh_nx = 10\nmesh_ny = 5\n"
-                    "[[ribs]]\naxis = \"x\"\nposition_mm = 0\nwidth_mm = 20\ndepth_mm = 40\n")
+    path.write_text(
+        "[table]\nthickness_mm = 80\nmesh_nx = 10\nmesh_ny = 5\n"
+        '[[ribs]]\naxis = "x"\nposition_mm = 0\nwidth_mm = 20\ndepth_mm = 40\n'
+    )
     cfg = load_config(path)
     assert cfg["table"]["thickness_mm"] == 80.0 and cfg["carriage"]["capacity_N"] == 22800.0
     assert len(cfg["ribs"]) == 1
     pos = np.linspace(-0.3, 0.3, 5)
     thick = np.ptp(joint_errors(build_machine(cfg), paper_variant(1), pos).user_units()[:, 0, 3])
-    thin = np.ptp(joint_errors(majda2012_machine(nx=10, ny=5), paper_variant(1), pos).user_units()[:, 0, 3])
+    thin = np.ptp(
+        joint_errors(majda2012_machine(nx=10, ny=5), paper_variant(1), pos).user_units()[:, 0, 3]
+    )
     assert thick < thin  # a stiffer table spreads the roll less between the corners
 
 
@@ -45,9 +49,9 @@ BAD = [
     ("[tabel]\nlength_mm = 1000", "[tabel]: unknown section"),
     ("[table]\nlenght_mm = 1000", "key 'table.lenght_mm' is unknown"),
     ("[table]\nthickness_mm = -5", "key 'table.thickness_mm': -5 outside the allowed range"),
-    ("[table]\nthickness_mm = \"thick\"", "key 'table.thickness_mm': value must be a number"),
+    ('[table]\nthickness_mm = "thick"', "key 'table.thickness_mm': value must be a number"),
     ("[table]\nmesh_nx = 2.5", "key 'table.mesh_nx': must be an integer"),
-    ("[carriage]\nlaw = \"magic\"", "key 'carriage.law': 'magic' is not allowed"),
+    ('[carriage]\nlaw = "magic"', "key 'carriage.law': 'magic' is not allowed"),
     ("[carriage]\npreload_fraction = 1.5", "key 'carriage.preload_fraction': 1.5 outside"),
     ("[carriage]\ngroove_conformity = 0.9", "key 'carriage.groove_conformity'"),
     ("[guideway]\nrail_y_mm = [-170]", "key 'guideway.rail_y_mm': must be a list of two numbers"),
@@ -55,7 +59,7 @@ BAD = [
     ("[guideway]\ncarriage_x_mm = [-10, 10]", "the carriages overlap"),
     ("[points]\nP9 = [900, 0]", "key 'points.P9'"),
     ("[screw]\nfree_length_at_ref_mm = 100", "must exceed half the stroke"),
-    ("[[ribs]]\naxis = \"z\"", "key 'ribs[1].axis'"),
+    ('[[ribs]]\naxis = "z"', "key 'ribs[1].axis'"),
     ("[table]\nE_GPa = nan", "must be finite"),
 ]
 

@@ -18,7 +18,9 @@ E_STAR = E / (2 * (1 - NU**2))  # two steel bodies
 def test_sphere_on_flat_closed_form(F, R):
     # Johnson (4.23): δ = (9F²/(16 R E*²))^(1/3), a = (3FR/(4E*))^(1/3)
     out = point_contact(F, 1 / (2 * R), 1 / (2 * R), E_STAR)
-    assert float(out["approach"]) == pytest.approx((9 * F**2 / (16 * R * E_STAR**2)) ** (1 / 3), rel=1e-10)
+    assert float(out["approach"]) == pytest.approx(
+        (9 * F**2 / (16 * R * E_STAR**2)) ** (1 / 3), rel=1e-10
+    )
     assert float(out["a"]) == pytest.approx((3 * F * R / (4 * E_STAR)) ** (1 / 3), rel=1e-10)
 
 
@@ -28,7 +30,9 @@ def test_sphere_on_sphere_closed_form(R1, R2):
     F = 40.0
     R = 1 / (1 / R1 + 1 / R2)
     out = point_contact(F, 1 / (2 * R), 1 / (2 * R), E_STAR)
-    assert float(out["approach"]) == pytest.approx((9 * F**2 / (16 * R * E_STAR**2)) ** (1 / 3), rel=1e-10)
+    assert float(out["approach"]) == pytest.approx(
+        (9 * F**2 / (16 * R * E_STAR**2)) ** (1 / 3), rel=1e-10
+    )
 
 
 def _scipy_elliptic_approach(F, A, B, E_star):
@@ -91,7 +95,9 @@ def test_palmgren_roller():
     assert law.exponent == pytest.approx(10 / 9)
 
 
-@pytest.mark.parametrize("law", [HertzBall(3e-3, 3.03e-3), RivinBall(3e-3, 3.03e-3), PalmgrenRoller(6e-3)])
+@pytest.mark.parametrize(
+    "law", [HertzBall(3e-3, 3.03e-3), RivinBall(3e-3, 3.03e-3), PalmgrenRoller(6e-3)]
+)
 def test_force_inverts_approach(law):
     for F in (0.1, 38.0, 900.0):
         assert float(law.force(law.preload_approach(F))) == pytest.approx(F, rel=1e-12)

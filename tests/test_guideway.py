@@ -36,9 +36,9 @@ def two_opposed_rows(law, n=10, pitch=4e-3, per_element=40.0):
 
 def _vertical_sweep(carriage, loads, free):
     """Upward load sweep (Z); returns tz (m) and the approaches of the row pushing down."""
-    sols = jax.vmap(
-        lambda F: solve_carriage(carriage, jnp.array([0, 0, F, 0, 0, 0.0]), free=free)
-    )(loads)
+    sols = jax.vmap(lambda F: solve_carriage(carriage, jnp.array([0, 0, F, 0, 0, 0.0]), free=free))(
+        loads
+    )
     assert bool(jnp.all(sols.converged))
     return sols
 
@@ -62,7 +62,9 @@ def test_opposed_rows_stiffness_is_twice_one_row():
     law = HertzBall(3e-3, 3.03e-3)
     c = two_opposed_rows(law)
     g0 = float(c.preload_approach)
-    one_row = c.n_elements * law.exponent * float(law.stiffness_constant()) * g0 ** (law.exponent - 1)
+    one_row = (
+        c.n_elements * law.exponent * float(law.stiffness_constant()) * g0 ** (law.exponent - 1)
+    )
     dF = 1.0
     sols = _vertical_sweep(c, jnp.array([-dF, dF]), free=(2,))
     k = 2 * dF / float(sols.pose[1, 2] - sols.pose[0, 2])
@@ -125,8 +127,13 @@ def test_implicit_gradients_match_finite_differences():
 
     def pose(F, A, preload):
         cc = four_row_carriage(
-            c.law, n=12, pitch=4e-3, capacity=22.8e3, preload_fraction=preload,
-            upper_yz=(9e-3, -15e-3), lower_yz=(11.5e-3, -23e-3),
+            c.law,
+            n=12,
+            pitch=4e-3,
+            capacity=22.8e3,
+            preload_fraction=preload,
+            upper_yz=(9e-3, -15e-3),
+            lower_yz=(11.5e-3, -23e-3),
         )
         rail = rail_under(cc, SinusoidalRail(A, lam, 0.3), 0.0)
         load = jnp.array([0.0, 0.3 * F, -F, 2.0, 1.0, -0.5])
@@ -136,6 +143,7 @@ def test_implicit_gradients_match_finite_differences():
     jac = jax.jacfwd(pose, argnums=(0, 1, 2))(*x0)
     steps = (1.0, 1e-8, 1e-4)
     for i, h in enumerate(steps):
+
         def f(v, i=i):
             args = list(x0)
             args[i] = v
@@ -171,8 +179,12 @@ def test_roller_block_is_stiffer_than_ball_block():
 )
 def test_invalid_carriage_parameters(kwargs, match):
     base = dict(
-        n=12, pitch=4e-3, capacity=22.8e3, preload_fraction=0.08,
-        upper_yz=(9e-3, -15e-3), lower_yz=(11.5e-3, -23e-3),
+        n=12,
+        pitch=4e-3,
+        capacity=22.8e3,
+        preload_fraction=0.08,
+        upper_yz=(9e-3, -15e-3),
+        lower_yz=(11.5e-3, -23e-3),
     )
     base.update(kwargs)
     with pytest.raises(ValueError, match=match):

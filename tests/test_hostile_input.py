@@ -14,7 +14,7 @@ LOCATED = re.compile(r"^\S+\.(csv|toml)(:\d+)?: ")
 
 csv_cell = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True).map(repr),
-    st.integers(-10**6, 10**6).map(str),
+    st.integers(-(10**6), 10**6).map(str),
     st.text(alphabet=string.printable, max_size=8),
     st.sampled_from(["1", "2", "", " ", "nan", "inf", "-0", "1e400", '"', ",,"]),
 )
@@ -35,7 +35,9 @@ def _loads_or_located_error(load, path):
         assert str(path) in str(exc)
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(text=st.one_of(csv_text, st.text(max_size=200)))
 def test_rails_csv_loader_on_arbitrary_text(tmp_path, text):
     path = tmp_path / "rails.csv"
@@ -43,18 +45,27 @@ def test_rails_csv_loader_on_arbitrary_text(tmp_path, text):
     _loads_or_located_error(read_rails_csv, path)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(s=st.lists(st.floats(-1e5, 1e5), min_size=4, max_size=12),
-       v=st.floats(-1e4, 1e4), rail=st.sampled_from([1, 2]))
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    s=st.lists(st.floats(-1e5, 1e5), min_size=4, max_size=12),
+    v=st.floats(-1e4, 1e4),
+    rail=st.sampled_from([1, 2]),
+)
 def test_rails_csv_loader_on_numeric_but_odd_samples(tmp_path, s, v, rail):
     # valid numbers, odd geometry: duplicates, huge ranges, samples 1e-9 mm apart
     path = tmp_path / "rails.csv"
-    path.write_text("rail,s_mm,vertical_um,horizontal_um\n"
-                    + "".join(f"{rail},{x!r},{v!r},0\n" for x in s), encoding="utf-8")
+    path.write_text(
+        "rail,s_mm,vertical_um,horizontal_um\n" + "".join(f"{rail},{x!r},{v!r},0\n" for x in s),
+        encoding="utf-8",
+    )
     _loads_or_located_error(read_rails_csv, path)
 
 
-@settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=50, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(data=st.binary(max_size=200))
 def test_rails_csv_loader_on_arbitrary_bytes(tmp_path, data):
     path = tmp_path / "rails.csv"
@@ -63,23 +74,46 @@ def test_rails_csv_loader_on_arbitrary_bytes(tmp_path, data):
 
 
 toml_value = st.one_of(
-    st.integers(-10**9, 10**9).map(str),
+    st.integers(-(10**9), 10**9).map(str),
     st.floats(allow_nan=True, allow_infinity=True).map(lambda v: repr(v).replace("inf", "inf")),
     st.text(alphabet=string.ascii_letters, max_size=6).map(lambda s: f'"{s}"'),
-    st.lists(st.integers(-1000, 1000), max_size=3).map(lambda v: "[" + ", ".join(map(str, v)) + "]"),
+    st.lists(st.integers(-1000, 1000), max_size=3).map(
+        lambda v: "[" + ", ".join(map(str, v)) + "]"
+    ),
     st.sampled_from(["true", "[]", "{}", '"O"', '"hertz"', "1e999", "nan", "-nan"]),
 )
-sections = st.sampled_from(["table", "guideway", "carriage", "screw", "machine", "points", "ribs", "x"])
-keys = st.sampled_from([
-    "length_mm", "thickness_mm", "mesh_nx", "rail_y_mm", "carriage_x_mm", "law", "arrangement",
-    "preload_fraction", "P1", "nut_xy_mm", "stroke_mm", "axis", "bogus",
-])
+sections = st.sampled_from(
+    ["table", "guideway", "carriage", "screw", "machine", "points", "ribs", "x"]
+)
+keys = st.sampled_from(
+    [
+        "length_mm",
+        "thickness_mm",
+        "mesh_nx",
+        "rail_y_mm",
+        "carriage_x_mm",
+        "law",
+        "arrangement",
+        "preload_fraction",
+        "P1",
+        "nut_xy_mm",
+        "stroke_mm",
+        "axis",
+        "bogus",
+    ]
+)
 toml_text = st.lists(
     st.tuples(sections, st.lists(st.tuples(keys, toml_value), max_size=4)), max_size=4
-).map(lambda secs: "\n".join(f"[{s}]\n" + "\n".join(f"{k} = {v}" for k, v in body) for s, body in secs))
+).map(
+    lambda secs: "\n".join(
+        f"[{s}]\n" + "\n".join(f"{k} = {v}" for k, v in body) for s, body in secs
+    )
+)
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(text=st.one_of(toml_text, st.text(max_size=200)))
 def test_config_loader_on_arbitrary_text(tmp_path, text):
     path = tmp_path / "machine.toml"

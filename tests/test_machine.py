@@ -101,7 +101,9 @@ def test_variant2_pitch_and_roll_grow_or_shrink_depending_on_the_point(sweeps):
 def test_elastic_table_changes_roll_rigid_table_does_not(machine):
     rigid = joint_errors(machine.with_rigid_table(), paper_variant(1), POSITIONS)
     e = rigid.user_units()
-    np.testing.assert_allclose(e[:, :, 3:], np.broadcast_to(e[:, :1, 3:], e[:, :, 3:].shape), atol=1e-9)
+    np.testing.assert_allclose(
+        e[:, :, 3:], np.broadcast_to(e[:, :1, 3:], e[:, :, 3:].shape), atol=1e-9
+    )
 
 
 def test_rigid_table_points_follow_rigid_body_kinematics(machine):
@@ -189,7 +191,11 @@ def test_jvp_against_finite_differences(grad_point):
     rng = np.random.default_rng(2)
     dc = jnp.asarray(rng.normal(size=c.shape))
     f = jax.jit(_errors)
-    for tangent, h in (((1.0, 0.0, 0 * dc), 1e-5), ((0.0, 1.0, 0 * dc), 1e-5), ((0.0, 0.0, dc), 1e-7)):
+    for tangent, h in (
+        ((1.0, 0.0, 0 * dc), 1e-5),
+        ((0.0, 1.0, 0 * dc), 1e-5),
+        ((0.0, 0.0, dc), 1e-7),
+    ):
         _, jv = jax.jvp(f, (t, pre, c), tangent)
         plus = f(t + h * tangent[0], pre + h * tangent[1], c + h * tangent[2])
         minus = f(t - h * tangent[0], pre - h * tangent[1], c - h * tangent[2])

@@ -101,7 +101,9 @@ def test_cli_exits_non_zero_and_writes_nothing_on_failure(tmp_path, capsys, monk
 
     monkeypatch.setattr(kin, "joint_errors", failing)
     out = tmp_path / "e.csv"
-    rc = main(["simulate", "--positions", "-300:300:3", "--mesh", "10x5", "--out", str(out), "--quiet"])
+    rc = main(
+        ["simulate", "--positions", "-300:300:3", "--mesh", "10x5", "--out", str(out), "--quiet"]
+    )
     assert rc != 0 and not out.exists()
     err = capsys.readouterr().err
     assert "did not converge at 0 mm" in err
@@ -116,8 +118,11 @@ def random_machine_case(draw):
     length = draw(st.floats(700.0, 1500.0))
     width = draw(st.floats(400.0, 800.0))
     cfg["table"].update(
-        length_mm=length, width_mm=width, thickness_mm=draw(st.floats(30.0, 120.0)),
-        mesh_nx=8, mesh_ny=4,
+        length_mm=length,
+        width_mm=width,
+        thickness_mm=draw(st.floats(30.0, 120.0)),
+        mesh_nx=8,
+        mesh_ny=4,
     )
     rail = draw(st.floats(0.25, 0.4)) * width
     spacing = draw(st.floats(0.2, 0.5)) * length
@@ -143,7 +148,10 @@ def machine_cases(draw):
 def check_random_machine(case):
     cfg, amp, lam, phase = case
     m = build_machine(cfg)
-    rails = (SinusoidalRail(amp, lam, phase), SinusoidalRail(0.5 * amp, 0.7 * lam, 0.0, "horizontal"))
+    rails = (
+        SinusoidalRail(amp, lam, phase),
+        SinusoidalRail(0.5 * amp, 0.7 * lam, 0.0, "horizontal"),
+    )
     half = cfg["machine"]["stroke_mm"] / 2e3
     x = jnp.linspace(-half, half, 5)
     state = equilibrium(m, rails, x)
@@ -153,7 +161,9 @@ def check_random_machine(case):
     for k in np.flatnonzero(conv):
         total, weight = total_wrench_cfg(m, state, k, cfg)
         worst = max(worst, float(np.max(np.abs(total)) / weight))
-    grad = jax.grad(lambda a: jnp.sum(equilibrium(m, (SinusoidalRail(a, lam, phase), rails[1]), x).interface))(amp)
+    grad = jax.grad(
+        lambda a: jnp.sum(equilibrium(m, (SinusoidalRail(a, lam, phase), rails[1]), x).interface)
+    )(amp)
     assert np.isfinite(float(grad))
     return bool(conv.all()), worst
 
@@ -166,7 +176,9 @@ def total_wrench_cfg(m, state, k, cfg):
     F = state.forces[k].reshape(m.n_carriages, -1)
     Phi = rigid_body_map(m.table.ref_points)
     w = Phi[: 6 * m.n_carriages].T @ (F @ G).reshape(-1)
-    w = w + Phi[6 * m.n_carriages :].T @ jnp.zeros(6).at[0].set(-m.screw_stiffness(x) * u[m.nut_dof])
+    w = w + Phi[6 * m.n_carriages :].T @ jnp.zeros(6).at[0].set(
+        -m.screw_stiffness(x) * u[m.nut_dof]
+    )
     weight = t["density_kg_m3"] * 9.81 * t["length_mm"] * t["width_mm"] * t["thickness_mm"] * 1e-9
     return np.asarray(w.at[2].add(-weight)), weight
 
