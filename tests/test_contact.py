@@ -79,7 +79,8 @@ def test_rivin_form_versus_hertz():
     """The paper's Rivin form, evaluated as written, gives 5.3x the Hertz approach (README)."""
     hertz = HertzBall(3e-3, 3.03e-3, E, NU)
     rivin = RivinBall(3e-3, 3.03e-3, E, NU, eta=1.412)
-    # hand evaluation of eq. (1) at F = 10 N (SI): 1.41·1.412·(100·1.0099/3e-3)^(1/3)·(1.82/210e9)^(2/3)
+    # hand evaluation of eq. (1) at F = 10 N (SI):
+    # 1.41·1.412·(100·1.0099/3e-3)^(1/3)·(1.82/210e9)^(2/3)
     by_hand = 1.41 * 1.412 * (100 * (2 * 3.03e-3 - 3e-3) / (3e-3 * 3.03e-3)) ** (1 / 3)
     by_hand *= (2 * (1 - 0.09) / 210e9) ** (2 / 3)
     assert float(rivin.contact_compliance()) * 10 ** (2 / 3) == pytest.approx(by_hand, rel=1e-12)
