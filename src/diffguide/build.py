@@ -2,10 +2,21 @@
 :class:`~diffguide.machine.Machine` (SI): the table condensed onto its carriages and nut, the
 runner block, the screw.
 
-Parameters that studies differentiate (plate thickness, table E, preload fraction) can be passed
-as (traced) SI overrides; everything else comes from the configuration.
+Parameters that studies differentiate (plate thickness, table E, preload fraction, carriage
+spacing) can be passed as (traced) SI overrides; everything else comes from the configuration.
+
+Carriage spacing. The carriage X positions enter twice: where the rails are sampled
+(``Machine.carriage_x``) and where the carriages are bolted to the table (the footprint patches
+and the mesh lines at their edges). A ``carriage_spacing`` override keeps the configuration's
+mesh topology and moves the grid lines of each carriage footprint (its edges and centre line)
+with the carriage, together with the patch reference point; the other grid lines stay.
+The moved mesh is then exactly the mesh a rebuild with the new ``carriage_x_mm`` gives (as long
+as no footprint line passes another grid line), so the derivative w.r.t. the spacing is the
+derivative of the rebuilt model.
 """
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 from .config import default_config
@@ -70,12 +81,51 @@ def table_from_config(cfg: dict, *, thickness=None, E=None, nx=None, ny=None, nu
     )
 
 
+def _moved_carriages(model, carriage_x0, spacing):
+    """Node coordinates, patch reference points (x, y) and carriage X (m) for a carriage
+    ``spacing`` (m; may be traced): each rail's carriages spread about their centre by
+    ``spacing / s₀`` (``s₀`` the configuration's spacing); the grid lines a rebuild puts at each
+    footprint (its edges and centre, :func:`~diffguide.fe.condense.patch_lines`) move with their
+    carriage, every other grid line stays, as in a rebuilt mesh."""
+    x0 = np.asarray(carriage_x0, dtype=float)
+    s0 = float(x0[-1] - x0[0])
+    centre = x0.mean()
+    shift_per_x = (x0 - centre) / s0  # d(carriage x)/d(spacing) for each carriage along a rail
+    mesh = model.mesh
+    xs = np.asarray(mesh.xs)
+    carriages = model.patches[:-1]
+    patch_shift, line_shift = [], jnp.zeros(len(xs))
+    for patch in carriages:
+        k = int(np.argmin(abs(x0 - patch.x)))
+        shift = (spacing - s0) * shift_per_x[k]
+        x_lo, x_hi = patch.box[:2]
+        on = np.isclose(xs[:, None], [x_lo, patch.x, x_hi], rtol=0, atol=1e-9).any(axis=1)
+        line_shift = jnp.where(on, shift, line_shift)  # both rails' carriages move alike
+        patch_shift.append(shift)
+    new_xs = xs + line_shift
+    new_xs = eqx.error_if(
+        new_xs,
+        jnp.any(jnp.diff(new_xs) <= 0),
+        "carriage_spacing moves a carriage footprint across another grid line of the mesh; "
+        "change guideway.carriage_x_mm in the configuration instead (or refine less)",
+    )
+    ny = len(mesh.ys)
+    nodes = jnp.asarray(mesh.nodes, dtype=float).at[:, 0].set(jnp.repeat(new_xs, ny))
+    patch_shift = jnp.stack(patch_shift)
+    ref_x = jnp.concatenate(
+        [jnp.array([p.x for p in carriages]) + patch_shift, jnp.array([model.patches[-1].x])]
+    )
+    ref_xy = jnp.stack([ref_x, jnp.array([p.y for p in model.patches])], axis=1)
+    return nodes, ref_xy, ref_x[:-1]
+
+
 def build_machine(
     cfg: dict | None = None,
     *,
     thickness=None,
     E=None,
     preload_fraction=None,
+    carriage_spacing=None,
     nx: int | None = None,
     ny: int | None = None,
     points: dict[str, tuple[float, float]] | None = None,
@@ -87,6 +137,10 @@ def build_machine(
         thickness: plate thickness override (m; may be traced for gradients).
         E: table Young's modulus override (Pa; may be traced).
         preload_fraction: preload override, fraction of C (may be traced).
+        carriage_spacing: distance between the two carriages on each rail (m; may be traced),
+            overriding ``guideway.carriage_x_mm`` about its centre; the mesh keeps the
+            configuration's topology with the footprint lines moved (module docstring), valid
+            while no footprint line passes another grid line (checked; an error otherwise).
         nx, ny: mesh divisions override.
         points: control points override ``{name: (x, y)}`` in m.
     """
@@ -100,12 +154,19 @@ def build_machine(
     for patch in model.patches[:-1]:  # carriages, then the nut
         carriage_x.append(patch.x)
         carriage_rail.append(int(np.argmin([abs(patch.y * 1e3 - ry) for ry in rail_y])))
+    carriage_x = np.asarray(carriage_x)
+    if carriage_spacing is None:
+        table = model.condense()
+    else:
+        x0 = [v * 1e-3 for v in cfg["guideway"]["carriage_x_mm"]]
+        nodes, ref_xy, carriage_x = _moved_carriages(model, x0, carriage_spacing)
+        table = model.condense(nodes=nodes, ref_xy=ref_xy)
     s = cfg["screw"]
     d = s["core_diameter_mm"] * 1e-3
     return Machine(
-        table=model.condense(),
+        table=table,
         carriage=carriage,
-        carriage_x=np.asarray(carriage_x),
+        carriage_x=carriage_x,
         carriage_rail=tuple(carriage_rail),
         point_names=model.point_names,
         points_xy=np.asarray(model.points),

@@ -166,6 +166,19 @@ def _rigid(d):
     return eye.at[..., :3, 3:].set(-_skew(d))
 
 
+def _spd_solve(A, B):
+    """``A⁻¹ B`` for SPD ``A`` by Cholesky, differentiated as a linear solve: a tangent costs
+    one more pair of triangular solves, ``dX = A⁻¹ (dB − dA X)``, not the derivative of the
+    factorisation (which costs O(n³) per tangent)."""
+    c, lower = jax.scipy.linalg.cho_factor(jax.lax.stop_gradient(A))
+    return jax.lax.custom_linear_solve(
+        lambda x: A @ x,
+        B,
+        solve=lambda _, b: jax.scipy.linalg.cho_solve((c, lower), b),
+        symmetric=True,
+    )
+
+
 def condense(
     mesh: TableMesh,
     plate: PlateSection,
@@ -173,6 +186,7 @@ def condense(
     points: Sequence[tuple[float, float]] = (),
     *,
     nodes: Float[Array, "n 3"] | None = None,
+    ref_xy: Float[Array, "p 2"] | None = None,
     gravity: ScalarLike = 9.81,
     surface_load: Float[Array, "3"] | None = None,
 ) -> CondensedTable:
@@ -185,23 +199,33 @@ def condense(
         points: control points (x, y) in m on the top surface (z = +t/2).
         nodes: node coordinates (m) replacing ``mesh.nodes`` (e.g. traced); the footprint
             membership and point elements are decided on ``mesh.nodes``.
+        ref_xy: reference points (x, y) (m) replacing the patches' static ``x``, ``y`` (e.g.
+            traced, to move the patches together with ``nodes``); shape (n_patches, 2). The
+            heights still follow ``RigidPatch.z`` / the plate underside.
         gravity: g (m/s²) along -Z; 0 for no self-weight.
         surface_load: uniform load on the plate (Pa, global components).
 
     Returns:
-        :class:`CondensedTable`. Differentiable w.r.t. thickness, material, rib sizes, ``nodes``.
+        :class:`CondensedTable`. Differentiable w.r.t. thickness, material, rib sizes, ``nodes``,
+        ``ref_xy``.
     """
     require_x64("diffguide.fe.condense")
     owner, block, n_free, quads = _topology(mesh, patches, points)
     mesh, plate, gravity = as_arrays((mesh, plate, gravity))
     sl = jnp.zeros(3) if surface_load is None else jnp.asarray(surface_load, dtype=float)
     pxyz = np.array([[p.x, p.y, np.nan if p.z is None else p.z] for p in patches])
+    if ref_xy is not None and np.shape(ref_xy) != (len(patches), 2):
+        raise ValueError(
+            f"ref_xy must have shape (n_patches, 2) = ({len(patches)}, 2), got {np.shape(ref_xy)}"
+        )
     pts = np.array(points, dtype=float).reshape(-1, 2)
-    return _condense(mesh, plate, nodes, gravity, sl, owner, block, n_free, quads, pxyz, pts)
+    return _condense(
+        mesh, plate, nodes, ref_xy, gravity, sl, owner, block, n_free, quads, pxyz, pts
+    )
 
 
 @eqx.filter_jit
-def _condense(mesh, plate, nodes, gravity, sl, owner, block, n_free, quads, pxyz, pts):
+def _condense(mesh, plate, nodes, ref_xy, gravity, sl, owner, block, n_free, quads, pxyz, pts):
     xyz = jnp.asarray(mesh.nodes if nodes is None else nodes, dtype=float)
     t = jnp.asarray(plate.thickness, dtype=float)
     n_patch = pxyz.shape[0]
@@ -209,6 +233,8 @@ def _condense(mesh, plate, nodes, gravity, sl, owner, block, n_free, quads, pxyz
     n_i = 6 * n_free
     n_r = n_i + m
     ref = jnp.where(jnp.isnan(pxyz), -0.5 * t, pxyz)
+    if ref_xy is not None:
+        ref = ref.at[:, :2].set(jnp.asarray(ref_xy, dtype=float))
     slave = owner >= 0
     d = xyz - ref[jnp.where(slave, owner, 0)]
     A = jnp.where(slave[:, None, None], _rigid(d), jnp.eye(6))  # node DOF = A @ block DOF
@@ -226,8 +252,7 @@ def _condense(mesh, plate, nodes, gravity, sl, owner, block, n_free, quads, pxyz
         f = f.at[dofs].add(fe)
 
     Kii, Kib, Kbb = K[:n_i, :n_i], K[:n_i, n_i:], K[n_i:, n_i:]
-    cf = jax.scipy.linalg.cho_factor(Kii)
-    X = jax.scipy.linalg.cho_solve(cf, jnp.concatenate([Kib, f[:n_i, None]], axis=1))
+    X = _spd_solve(Kii, jnp.concatenate([Kib, f[:n_i, None]], axis=1))
     Kc = Kbb - Kib.T @ X[:, :m]
     Kc = 0.5 * (Kc + Kc.T)
     fc = f[n_i:] - Kib.T @ X[:, m]
