@@ -3,7 +3,8 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-_LABELS = (
+#: (ISO name, unit, meaning) of the six joint kinematic errors, for axis labels.
+ERROR_LABELS = (
     ("EXX", "µm", "positioning"),
     ("EYX", "µm", "horizontal straightness"),
     ("EZX", "µm", "vertical straightness"),
@@ -27,7 +28,7 @@ def plot_joint_errors(positions_mm, errors_user, point_names, title="", compare=
     fig, axes = plt.subplots(2, 3, figsize=(13, 6.5), sharex=True, constrained_layout=True)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, ax in enumerate(axes.flat):
-        name, unit, what = _LABELS[k]
+        name, unit, what = ERROR_LABELS[k]
         for j, pname in enumerate(point_names):
             c = colors[j % len(colors)]
             ax.plot(positions_mm, errors_user[:, j, k], color=c, lw=1.6, label=pname)

@@ -3,14 +3,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-_LABELS = (
-    ("EXX", "µm", "positioning"),
-    ("EYX", "µm", "horizontal straightness"),
-    ("EZX", "µm", "vertical straightness"),
-    ("EAX", "µrad", "roll"),
-    ("EBX", "µrad", "pitch"),
-    ("ECX", "µrad", "yaw"),
-)
+from .errors import ERROR_LABELS as _LABELS
 
 
 def plot_monte_carlo(result, title: str = "", quantile: float = 0.95):
