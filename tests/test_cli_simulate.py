@@ -37,11 +37,13 @@ def test_stiffness_command_writes_fig3_csv(tmp_path, capsys):
 
 
 def test_simulate_writes_one_row_per_position_and_point(tmp_path):
-    out, png = tmp_path / "e.csv", tmp_path / "e.png"
+    out, png, field = tmp_path / "e.csv", tmp_path / "e.png", tmp_path / "field.png"
     assert (
         main(
             [
                 "simulate",
+                "--field-plot",
+                str(field),
                 "--variant",
                 "2",
                 "--positions",
@@ -75,6 +77,7 @@ def test_simulate_writes_one_row_per_position_and_point(tmp_path):
     at_ref = [r for r in rows if float(r["position_mm"]) == 0.0]
     assert all(abs(float(r[k])) < 1e-6 for r in at_ref for k in list(r)[4:])
     assert png.read_bytes()[:4] == b"\x89PNG"
+    assert field.read_bytes()[:4] == b"\x89PNG"
 
 
 def test_simulate_reads_rails_csv_same_as_the_paper_variant(tmp_path):

@@ -216,3 +216,17 @@ def test_vjp_against_finite_differences(grad_point):
     ):
         fd = (float(scalar(*plus)) - float(scalar(*minus))) / (2 * h)
         assert float(g) == pytest.approx(fd, rel=1e-4)
+
+
+def test_error_field_at_the_control_points_equals_their_errors(machine):
+    # two routes to the same numbers: the condensed point-recovery rows R (bilinear shell
+    # interpolation at the points) and the node field from the interior solution; the preset
+    # puts grid lines through the control points, so each point is a node
+    from diffguide.kinematics import error_field
+
+    je = joint_errors(machine, paper_variant(3), POSITIONS[:5])
+    xy, field = error_field(machine, je, 0)
+    for j, p in enumerate(np.asarray(je.points_xy)):
+        k = int(np.argmin(np.linalg.norm(np.asarray(xy) - p, axis=1)))
+        assert np.linalg.norm(np.asarray(xy)[k] - p) < 1e-12
+        np.testing.assert_allclose(field[k], je.errors[0, j], rtol=1e-9, atol=1e-15)

@@ -87,9 +87,7 @@ def joint_errors(
     errors = motion[:-1] - motion[-1]
     # a failed reference position invalidates every error: report its code everywhere
     ref_ok = (state.result == optx.RESULTS.successful)[-1]
-    result = jax.tree_util.tree_map(
-        lambda v: jnp.where(ref_ok, v[:-1], v[-1]), state.result
-    )
+    result = jax.tree_util.tree_map(lambda v: jnp.where(ref_ok, v[:-1], v[-1]), state.result)
     return JointErrors(
         positions=positions,
         x_ref=x_ref,
@@ -100,3 +98,27 @@ def joint_errors(
         interface=state.interface[:-1],
         interface_ref=state.interface[-1],
     )
+
+
+def error_field(machine: Machine, errors: JointErrors, index: int):
+    """The joint errors over the whole table top at sweep position ``errors.positions[index]``.
+
+    The motion of every mesh node's top-surface point (translation including ``θ × (t/2)e_z``
+    from the mid-surface; rotation of the surface) at that position, minus the same at the
+    reference position — the error field a plot of the table shows.
+
+    Returns:
+        ``(xy, field)``: node positions on the table (m), ``(n_nodes, 2)``, and their errors
+        ``(n_nodes, 6)`` (m, rad), ordered as :data:`ERROR_NAMES`.
+    """
+    from .machine import node_motion
+
+    half_t = -machine.table.ref_points[0, 2]  # the carriage patches sit on the underside
+    offset = jnp.array([0.0, 0.0, 1.0]) * half_t
+
+    def top(u):
+        nm = node_motion(machine, u)
+        return nm.at[:, :3].add(jnp.cross(nm[:, 3:], offset))
+
+    field = top(errors.interface[index]) - top(errors.interface_ref)
+    return machine.table.nodes[:, :2], field

@@ -73,6 +73,18 @@ def add_parser(sub) -> None:
         default=5.0,
         help="warn where another point's EAX/EBX/ECX depart from --at's by more (µrad)",
     )
+    p.add_argument(
+        "--field-plot",
+        metavar="FILE.png",
+        help="maps of EZX (µm), roll and pitch (µrad) over the whole table top at "
+        "the sweep position nearest --field-at",
+    )
+    p.add_argument(
+        "--field-at",
+        type=float,
+        default=None,
+        help="table position (mm) of --field-plot; default: the last position",
+    )
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
 
@@ -137,6 +149,21 @@ def run(args) -> int:
         )
     atomic_write_text(args.out, "\n".join(lines) + "\n")
     say(f"wrote {args.out}")
+    if args.field_plot:
+        from ..kinematics import error_field
+        from ..plotting.errors import plot_error_field
+
+        k = len(positions) - 1
+        if args.field_at is not None:
+            k = int(np.argmin(np.abs(positions * 1e3 - args.field_at)))
+        xy, field = error_field(machine, je, k)
+        fig = plot_error_field(
+            xy,
+            np.asarray(field) * 1e6,
+            f"{name}: errors over the table at x = {positions[k] * 1e3:g} mm",
+        )
+        atomic_savefig(fig, args.field_plot, dpi=100)
+        say(f"wrote {args.field_plot}")
     if args.export_compensation:
         from ..compensation import compensation_table, location_warnings
 

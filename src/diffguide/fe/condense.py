@@ -92,6 +92,7 @@ class CondensedTable(eqx.Module):
         node_modes: (n_nodes, 6, m) node DOF per interface DOF (mid-surface nodes).
         node_u0: (n_nodes, 6) node DOF due to the table loads with ``u_b = 0``.
         ref_points: (n_patches, 3) reference points (m).
+        nodes: (n_nodes, 3) mesh node coordinates (m), mid-surface, in ``node_modes`` order.
     """
 
     K: Float[Array, "m m"]
@@ -101,6 +102,7 @@ class CondensedTable(eqx.Module):
     node_modes: Float[Array, "n 6 m"]
     node_u0: Float[Array, "n 6"]
     ref_points: Float[Array, "p 3"]
+    nodes: Float[Array, "n 3"]
 
     def interface_loads(self, u_b: Float[Array, " m"]) -> Float[Array, " m"]:
         """Wrench applied to the table at the reference points, ``F_b = K u_b - f`` (N, N·m)."""
@@ -282,5 +284,6 @@ def _condense(mesh, plate, nodes, ref_xy, gravity, sl, owner, block, n_free, qua
     else:
         Rm, r0 = jnp.zeros((0, m)), jnp.zeros(0)
     return CondensedTable(
-        K=Kc, f=fc, R=Rm, r0=r0, node_modes=node_modes, node_u0=node_u0, ref_points=ref
+        K=Kc, f=fc, R=Rm, r0=r0, node_modes=node_modes, node_u0=node_u0, ref_points=ref,
+        nodes=xyz
     )

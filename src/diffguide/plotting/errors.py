@@ -52,3 +52,32 @@ def plot_joint_errors(positions_mm, errors_user, point_names, title="", compare=
 def error_ranges(errors_user) -> np.ndarray:
     """Peak-to-peak range of each error at each point, (n_points, 6)."""
     return np.ptp(errors_user, axis=0)
+
+
+def plot_error_field(xy, field_user, title="", components=(2, 3, 4)):
+    """Maps of error components over the table top (µm / µrad), one panel each.
+
+    Arguments:
+        xy: (n_nodes, 2) node positions (m). field_user: (n_nodes, 6) errors in µm / µrad
+            (:func:`diffguide.kinematics.error_field` scaled). components: indices into
+            EXX … ECX (default EZX, roll, pitch).
+    """
+    xy = np.asarray(xy) * 1e3
+    fig, axes = plt.subplots(
+        1,
+        len(components),
+        figsize=(4.6 * len(components), 3.2),
+        constrained_layout=True,
+        squeeze=False,
+    )
+    for ax, k in zip(axes[0], components):
+        name, unit, what = ERROR_LABELS[k]
+        tc = ax.tricontourf(xy[:, 0], xy[:, 1], field_user[:, k], levels=16, cmap="RdBu_r")
+        fig.colorbar(tc, ax=ax, label=unit)
+        ax.set_title(f"{name} ({what})", fontsize=10)
+        ax.set_xlabel("x on the table (mm)")
+        ax.set_aspect("equal")
+    axes[0, 0].set_ylabel("y (mm)")
+    if title:
+        fig.suptitle(title)
+    return fig
