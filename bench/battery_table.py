@@ -1,0 +1,95 @@
+"""The identification battery (tests/battery, issue 11) as a markdown table for the README.
+
+Runs every case (or those named) one after the other — simulate on the fine truth machine, write
+the readings as CSV text, parse and merge, fit with ``tests/battery/cases.run_fit``, score — and
+prints one row per case: what it stresses, χ²/dof, the profile RMS error (µm, and % of the
+truth's RMS; all four profiles, gauge removed, 10 % trimmed at each end), the ±2σ coverage
+(overall and the worst profile), LM convergence and the seconds from readings to score (machine
+builds and compiles included where a case is the first to need them; noisy on a shared CPU).
+A fit that raises is a row too, with the exception. Run:
+
+    python bench/battery_table.py [CASE ...] [--json FILE]
+"""
+
+import argparse
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+from battery.cases import CASES, result  # noqa: E402
+
+
+def _row(res) -> tuple[str, dict]:
+    c = res.case
+    if res.fit is None:
+        msg = res.error.splitlines()[0]
+        msg = msg if len(msg) <= 90 else msg[:87] + "..."
+        return (f"| {c.name} | {c.stresses} | — | raised: `{msg}` | — | — | {res.seconds:.0f} |"), {
+            "name": c.name,
+            "error": res.error,
+            "seconds": res.seconds,
+        }
+    s = res.score
+    r, p = divmod(int(s.coverage.argmin()), 2)
+    row = (
+        f"| {c.name} | {c.stresses} | {res.fit.chi2_dof:.2f} | {s.overall_rms_um:.3g} µm "
+        f"({100 * s.overall_rel:.0f} %; worst {100 * s.worst_rel:.0f} %) | "
+        f"{100 * s.overall_coverage:.0f} % / {100 * s.worst_coverage:.0f} % "
+        f"({s.label(r, p)}) | {'yes' if res.fit.converged else '**no**'} | "
+        f"{res.seconds:.0f} |"
+    )
+    data = {
+        "name": c.name,
+        "chi2_dof": float(res.fit.chi2_dof),
+        "converged": bool(res.fit.converged),
+        "seconds": res.seconds,
+        "overall_rms_um": s.overall_rms_um,
+        "overall_rel": s.overall_rel,
+        "overall_coverage": s.overall_coverage,
+        "rms_um": s.rms_um.tolist(),
+        "rel": s.rel.tolist(),
+        "coverage": s.coverage.tolist(),
+        "truth_rms_um": s.truth_rms_um.tolist(),
+        "sigma_rms_um": s.sigma_rms_um.tolist(),
+    }
+    return row, data
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("cases", nargs="*", help=f"default all: {', '.join(CASES)}")
+    ap.add_argument("--json", help="also write the numbers per case to this JSON file")
+    args = ap.parse_args()
+    names = args.cases or list(CASES)
+    unknown = [n for n in names if n not in CASES]
+    if unknown:
+        ap.error(f"unknown case(s) {', '.join(unknown)} (allowed {', '.join(CASES)})")
+    print(
+        f"<!-- jax {jax.__version__} on {platform.processor() or platform.machine()}, "
+        f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}, float64 -->"
+    )
+    print(
+        "| case | what it stresses | χ²/dof | profile RMS error (% of truth) | "
+        "±2σ coverage: all / worst profile | converged | s |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    out = []
+    for name in names:
+        row, data = _row(result(name))
+        print(row, flush=True)
+        out.append(data)
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,497 @@
+r"""The battery's cases: truth rails, sensor layouts, readings as a CSV text, and the fit call.
+
+A case (:class:`Case`) is made by one small function (its docstring's first line says what it
+stresses; :data:`CASES` lists them). From a case:
+
+1. :func:`truth_rails` — the truth, a :class:`TruthRail` per rail (not a spline): per plane
+
+   .. math::  e(s) = k\Bigl[\sum_{j=0}^{3} a_j (s/1\,\mathrm{m})^j
+              + \sum_k A_k \sin(2π s/λ_k + φ_k) + \tfrac{h}{2}\tanh\frac{s - s_0}{w}\Bigr]
+
+   (µm; the tanh is a rail-joint step of height ``h`` whose 10–90 % rise takes ``2.2 w``), the
+   scale ``k`` set so that the four profiles' RMS (each less its mean, over
+   :data:`RMS_RANGE`) is ``Case.rms_um`` when that is given;
+2. :func:`simulate_errors` — the joint errors of the truth on the *truth machine*:
+   ``majda2012_machine(nx=40, ny=20, thickness=..., preload_fraction=..., points=...)``, finer
+   than the fit's 20 × 10 mesh (built once per distinct structure and layout);
+3. :func:`readings_csv` — the readings of ``Case.runs`` runs (forward and, unless
+   unidirectional, backward), one row each, in the long format of
+   :mod:`diffguide.measurements`, with Gaussian noise per reading (:data:`NOISE`: levels 4 µm/m,
+   interferometer 2 µm/m, straightness optics 1 µm), optionally a linear drift in time over each
+   run and gross outliers; fixed seeds;
+4. :func:`measurements` — that text through ``parse_readings`` + ``merge_readings``;
+5. :func:`run_fit` — **the one call of the fit** (switch it to a new API here).
+
+Sensor layouts (point, x mm, y mm, instrument, quantities): :data:`BUNDLED` (levels at the four
+corners reading pitch and roll, an interferometer at the centre reading pitch and yaw, as in the
+bundled data set), :data:`LEVELS_ONLY`, :data:`INTERFEROMETER_ONLY`, :data:`WITH_STRAIGHTNESS`.
+"""
+
+import dataclasses
+import time
+from collections.abc import Callable
+
+import jax.numpy as jnp
+import numpy as np
+
+from diffguide.rails import AbstractRailProfile
+
+#: Readings' standard deviation per (instrument, kind): µm/m (angular), µm (linear).
+NOISE = {
+    ("level", "angular"): 4.0,
+    ("interferometer", "angular"): 2.0,
+    ("interferometer", "linear"): 1.0,
+}
+QUANTITIES = ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX")  # order of JointErrors.errors
+LINEAR = ("EXX", "EYX", "EZX")
+#: Rail range (m) over which a truth is scaled to its RMS (about what the elements visit).
+RMS_RANGE = (-0.53, 0.53)
+#: The fine (truth) mesh; the fit uses the preset's 20 × 10.
+TRUTH_MESH = (40, 20)
+#: Carriage-averaging and carriage-spacing blind wavelengths of ``majda2012`` (m):
+#: ``n·p`` = 48 mm; ``l`` = 320 mm (pitch/yaw, ``l/k``); ``2l`` = 640 mm and ``2l/3`` = 213 mm
+#: (roll, ``2l/(2k+1)``) — :func:`diffguide.inverse.blind_wavelengths`; checked by a test.
+BLIND_WAVELENGTHS = (0.048, 0.320, 0.640, 0.640 / 3)
+MAX_WAVES = 16  # sinusoids per profile (padded with zero amplitude: one compiled shape)
+
+Sensor = tuple[str, float, float, str, tuple[str, ...]]
+BUNDLED: tuple[Sensor, ...] = (
+    ("P1", 450.0, 200.0, "level", ("EBX", "EAX")),
+    ("P2", -450.0, 200.0, "level", ("EBX", "EAX")),
+    ("P3", -450.0, -200.0, "level", ("EBX", "EAX")),
+    ("P4", 450.0, -200.0, "level", ("EBX", "EAX")),
+    ("P5", 0.0, 0.0, "interferometer", ("EBX", "ECX")),
+)
+LEVELS_ONLY = BUNDLED[:4]
+INTERFEROMETER_ONLY = BUNDLED[4:]
+WITH_STRAIGHTNESS = BUNDLED[:4] + (
+    ("P5", 0.0, 0.0, "interferometer", ("EBX", "ECX", "EYX", "EZX")),
+)
+
+
+# ----------------------------------------------------------------------------- truth rails
+
+
+@dataclasses.dataclass(frozen=True)
+class Plane:
+    """One profile's truth (µm, m): polynomial ``a_j`` (µm per m^j), sinusoids ``(A µm, λ m,
+    φ rad)``, a step ``(h µm, s₀ m, w m)`` (``h = 0``: none)."""
+
+    poly: tuple[float, ...] = (0.0,)
+    waves: tuple[tuple[float, float, float], ...] = ()
+    step: tuple[float, float, float] = (0.0, 0.0, 1e-3)
+
+
+@dataclasses.dataclass(frozen=True)
+class Truth:
+    """Four profiles: ``planes[(rail, plane)]``, rail 1 or 2, plane ``vertical``/``horizontal``."""
+
+    planes: dict
+
+
+def _evaluate(xp, s, poly, waves, step):
+    """``e(s)`` (m) of the arrays of :class:`TruthRail` (one plane), numpy or jax.numpy."""
+    x = s  # s / 1 m
+    e = poly[0] + poly[1] * x + poly[2] * x**2 + poly[3] * x**3
+    e = e + xp.sum(
+        waves[:, 0] * xp.sin(2 * xp.pi * s[..., None] / waves[:, 1] + waves[:, 2]), axis=-1
+    )
+    e = e + 0.5 * step[0] * xp.tanh((s - step[1]) / step[2])
+    return e * 1e-6
+
+
+def _arrays(plane: Plane, scale: float):
+    poly = np.zeros(4)
+    poly[: len(plane.poly)] = plane.poly
+    waves = np.zeros((MAX_WAVES, 3))
+    waves[:, 1] = 1.0
+    if plane.waves:
+        waves[: len(plane.waves)] = plane.waves
+    step = np.array(plane.step, float)
+    return poly * scale, waves * [scale, 1.0, 1.0], step * [scale, 1.0, 1.0]
+
+
+class TruthRail(AbstractRailProfile):
+    """A truth rail: polynomial + sinusoids + a tanh step per plane (see the module docstring).
+
+    Arrays (µm, m) with a leading plane axis (vertical, horizontal): ``poly`` ``(2, 4)``,
+    ``waves`` ``(2, 16, 3)``, ``step`` ``(2, 3)``.
+    """
+
+    poly: jnp.ndarray
+    waves: jnp.ndarray
+    step: jnp.ndarray
+
+    def __call__(self, s):
+        s = jnp.asarray(s, dtype=float)
+        v, h = (_evaluate(jnp, s, self.poly[k], self.waves[k], self.step[k]) for k in range(2))
+        return h, v
+
+
+def _scale(truth: Truth, rms_um: float | None) -> float:
+    if rms_um is None:
+        return 1.0
+    s = np.linspace(*RMS_RANGE, 1001)
+    e = np.array([_evaluate(np, s, *_arrays(p, 1.0)) for p in truth.planes.values()]) * 1e6
+    e = e - e.mean(axis=1, keepdims=True)
+    return rms_um / float(np.sqrt(np.mean(e**2)))
+
+
+def _rail_arrays(case: "Case", rail: int):
+    k = _scale(case.truth, case.rms_um)
+    arrs = [_arrays(case.truth.planes[(rail, pl)], k) for pl in ("vertical", "horizontal")]
+    return tuple(np.stack(a) for a in zip(*arrs))
+
+
+def truth_rails(case: "Case") -> tuple[TruthRail, TruthRail]:
+    """The case's truth as rail profiles (rail 1, rail 2) for the forward model."""
+    return tuple(TruthRail(*(jnp.asarray(a) for a in _rail_arrays(case, r))) for r in (1, 2))
+
+
+def truth_profiles(case: "Case", s) -> np.ndarray:
+    """The truth at ``s`` (m): ``(2 rails, 2 planes [vertical, horizontal], len(s))`` (m)."""
+    s = np.asarray(s, float)
+    out = np.zeros((2, 2, len(s)))
+    for r in (1, 2):
+        poly, waves, step = _rail_arrays(case, r)
+        for p in range(2):
+            out[r - 1, p] = _evaluate(np, s, poly[p], waves[p], step[p])
+    return out
+
+
+# ----------------------------------------------------------------------------- cases
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    """One battery case.
+
+    Attributes:
+        name: short identifier. stresses: what it stresses (one line).
+        truth: the rails' truth. rms_um: scale the truth to this RMS (µm), or keep it.
+        sensors: the layout. n_positions: positions over the 700 mm stroke (±350 mm).
+        runs: runs per direction. bidirectional: forward and backward runs, else forward only.
+        thickness, preload: the truth machine's plate thickness (m) and preload (fraction of
+            C); ``None`` = the preset's (50 mm, 8 %) — set for the wrong-structure cases.
+        drift: RMS of a linear drift in time over each run, in reading σ per run (0: none).
+        outliers: this many readings off by ``outlier_sigma`` reading σ (random sign).
+        seed: noise seed.
+    """
+
+    name: str
+    stresses: str
+    truth: Truth
+    sensors: tuple[Sensor, ...] = BUNDLED
+    rms_um: float | None = None
+    n_positions: int = 36
+    runs: int = 5
+    bidirectional: bool = True
+    thickness: float | None = None
+    preload: float | None = None
+    drift: float = 0.0
+    outliers: int = 0
+    outlier_sigma: float = 10.0
+    seed: int = 0
+
+    @property
+    def wrong_structure(self) -> bool:
+        return self.thickness is not None or self.preload is not None
+
+    def positions_mm(self) -> np.ndarray:
+        return np.linspace(-350.0, 350.0, self.n_positions)
+
+    def points(self) -> dict[str, tuple[float, float]]:
+        """Sensor locations ``{name: (x, y)}`` (m)."""
+        return {name: (x * 1e-3, y * 1e-3) for name, x, y, _, _ in self.sensors}
+
+
+#: The bundled data set's truth (data/make_majda2012_measurements.py): quadratic + two sines.
+BUNDLED_TRUTH = Truth(
+    {
+        (1, "vertical"): Plane((0.0, 2.0, 6.0), ((1.2, 0.85, 0.4), (0.5, 0.55, 2.1))),
+        (1, "horizontal"): Plane((0.0, 1.0, -3.0), ((1.0, 1.10, 1.3), (0.4, 0.62, 0.2))),
+        (2, "vertical"): Plane((0.0, -1.5, 4.0), ((1.0, 0.95, 2.6), (0.5, 0.60, 1.0))),
+        (2, "horizontal"): Plane((0.0, 0.5, -2.0), ((0.8, 0.90, 2.9), (0.4, 0.70, 1.7))),
+    }
+)
+
+
+def _case(fn: Callable, **kw) -> Case:
+    return Case(name=fn.__name__, stresses=fn.__doc__.strip().splitlines()[0], **kw)
+
+
+def baseline() -> Case:
+    """Bundled-like layout and truth (quadratic + 2 sines, 36 positions): the reference."""
+    return _case(baseline, truth=BUNDLED_TRUTH, seed=101)
+
+
+def rich_truth() -> Case:
+    """14 sinusoids per profile, 90–900 mm wavelengths, 71 positions."""
+    rng = np.random.default_rng(202)
+    planes = {}
+    for key in BUNDLED_TRUTH.planes:
+        lam = np.exp(rng.uniform(np.log(0.09), np.log(0.9), 14))
+        amp = rng.normal(0.0, 1.0, 14) * lam / 0.9  # amplitudes falling with wavelength
+        phase = rng.uniform(0.0, 2 * np.pi, 14)
+        planes[key] = Plane((0.0,), tuple(zip(amp, lam, phase)))
+    return _case(rich_truth, truth=Truth(planes), rms_um=1.0, n_positions=71, seed=202)
+
+
+def rail_joint_step() -> Case:
+    """A rail joint: rail 1 steps 3 µm vertically and 2 µm horizontally over ~5 mm at 137 mm."""
+    planes = dict(BUNDLED_TRUTH.planes)
+    for pl, h in (("vertical", 3.0), ("horizontal", 2.0)):
+        planes[(1, pl)] = dataclasses.replace(planes[(1, pl)], step=(h, 0.137, 2.5e-3))
+    return _case(rail_joint_step, truth=Truth(planes), seed=303)
+
+
+def blind_wavelengths() -> Case:
+    """Content at the blind wavelengths 48, 320, 640, 213 mm (0.4 µm each) on a small quadratic."""
+    planes = {}
+    for i, key in enumerate(BUNDLED_TRUTH.planes):
+        waves = tuple((0.4, lam, 0.7 * i + 1.1 * j) for j, lam in enumerate(BLIND_WAVELENGTHS))
+        planes[key] = Plane((0.0, 0.0, (2.0, -1.5, 1.0, -2.5)[i]), waves)
+    return _case(blind_wavelengths, truth=Truth(planes), seed=404)
+
+
+def levels_only() -> Case:
+    """Levels at the four corners (pitch, roll) and no interferometer: no yaw at all."""
+    return _case(levels_only, truth=BUNDLED_TRUTH, sensors=LEVELS_ONLY, seed=505)
+
+
+def interferometer_only() -> Case:
+    """One angular interferometer at the centre reading pitch and yaw only (no roll)."""
+    return _case(interferometer_only, truth=BUNDLED_TRUTH, sensors=INTERFEROMETER_ONLY, seed=606)
+
+
+def with_straightness() -> Case:
+    """Bundled layout plus straightness optics at the centre (EYX, EZX, 1 µm per reading)."""
+    return _case(with_straightness, truth=BUNDLED_TRUTH, sensors=WITH_STRAIGHTNESS, seed=707)
+
+
+def drift_and_outliers() -> Case:
+    """A linear drift in time over each run (2 σ RMS) and 5 readings off by 10 σ."""
+    return _case(drift_and_outliers, truth=BUNDLED_TRUTH, drift=2.0, outliers=5, seed=808)
+
+
+def unidirectional() -> Case:
+    """Five forward runs only (no reversal)."""
+    return _case(unidirectional, truth=BUNDLED_TRUTH, bidirectional=False, seed=909)
+
+
+def positions_141() -> Case:
+    """141 positions (every 5 mm) instead of 36."""
+    return _case(positions_141, truth=BUNDLED_TRUTH, n_positions=141, seed=1010)
+
+
+def rms_20um() -> Case:
+    """The bundled truth scaled to 20 µm RMS: far beyond the 2.5 µm preload approach."""
+    return _case(rms_20um, truth=BUNDLED_TRUTH, rms_um=20.0, seed=1111)
+
+
+def rms_0p2um() -> Case:
+    """The bundled truth scaled to 0.2 µm RMS: the signal near the noise."""
+    return _case(rms_0p2um, truth=BUNDLED_TRUTH, rms_um=0.2, seed=1212)
+
+
+def thickness_30mm() -> Case:
+    """Wrong structure: the truth table is 30 mm thick (the fit assumes 50 mm; −40 %)."""
+    return _case(thickness_30mm, truth=BUNDLED_TRUTH, thickness=0.030, seed=1313)
+
+
+def thickness_70mm() -> Case:
+    """Wrong structure: the truth table is 70 mm thick (the fit assumes 50 mm; +40 %)."""
+    return _case(thickness_70mm, truth=BUNDLED_TRUTH, thickness=0.070, seed=1414)
+
+
+def preload_2pct() -> Case:
+    """Wrong structure: the truth carriages have 2 % C preload (the fit assumes 8 %)."""
+    return _case(preload_2pct, truth=BUNDLED_TRUTH, preload=0.02, seed=1515)
+
+
+def preload_13pct() -> Case:
+    """Wrong structure: the truth carriages have 13 % C preload (the fit assumes 8 %)."""
+    return _case(preload_13pct, truth=BUNDLED_TRUTH, preload=0.13, seed=1616)
+
+
+#: Every case, by name, in table order.
+CASES: dict[str, Callable[[], Case]] = {
+    f.__name__: f
+    for f in (
+        baseline,
+        rich_truth,
+        rail_joint_step,
+        blind_wavelengths,
+        levels_only,
+        interferometer_only,
+        with_straightness,
+        drift_and_outliers,
+        unidirectional,
+        positions_141,
+        rms_20um,
+        rms_0p2um,
+        thickness_30mm,
+        thickness_70mm,
+        preload_2pct,
+        preload_13pct,
+    )
+}
+
+
+# ----------------------------------------------------------------------------- simulation
+
+_MACHINES: dict = {}  # module-level cache: each distinct machine is built (condensed) once
+
+
+def _points_key(points):
+    return tuple((k, float(x), float(y)) for k, (x, y) in points.items())
+
+
+def truth_machine(case: Case):
+    """The machine that makes the data: 40 × 20 mesh, the case's thickness and preload."""
+    from diffguide.majda2012 import majda2012_machine
+
+    key = ("truth", case.thickness, case.preload, _points_key(case.points()))
+    if key not in _MACHINES:
+        _MACHINES[key] = majda2012_machine(
+            nx=TRUTH_MESH[0],
+            ny=TRUTH_MESH[1],
+            thickness=case.thickness,
+            preload_fraction=case.preload,
+            points=case.points(),
+        )
+    return _MACHINES[key]
+
+
+def fit_machine(points: dict[str, tuple[float, float]]):
+    """The fit's machine: the ``majda2012`` preset (20 × 10 mesh, 50 mm, 8 %) at ``points``."""
+    from diffguide.majda2012 import majda2012_machine
+
+    key = ("fit", _points_key(points))
+    if key not in _MACHINES:
+        _MACHINES[key] = majda2012_machine(points=points)
+    return _MACHINES[key]
+
+
+def simulate_errors(case: Case) -> np.ndarray:
+    """Noise-free joint errors ``(n_pos, n_points, 6)`` of the truth, in µm and µm/m."""
+    from diffguide.kinematics import joint_errors
+
+    je = joint_errors(truth_machine(case), truth_rails(case), case.positions_mm() * 1e-3)
+    if not bool(np.all(np.asarray(je.converged))):
+        raise RuntimeError(f"{case.name}: the truth's forward model did not converge")
+    return np.asarray(je.errors) * 1e6
+
+
+def _sigma(instrument: str, quantity: str) -> float:
+    return NOISE[(instrument, "linear" if quantity in LINEAR else "angular")]
+
+
+def readings_csv(case: Case, errors: np.ndarray | None = None, noise: bool = True) -> str:
+    """The case's readings as a long-format measurement CSV text (µm, µm/m).
+
+    Time runs through each run: the forward pass then (if bidirectional) the backward pass,
+    one position per time step; a run's drift is ``rate · t/T`` (``T`` the run's duration),
+    ``rate ~ N(0, (drift·σ)²)`` per run and channel. ``noise=False``: exact values (no noise,
+    drift or outliers).
+    """
+    if errors is None:
+        errors = simulate_errors(case)
+    rng = np.random.default_rng(case.seed)
+    pos = case.positions_mm()
+    n = len(pos)
+    dirs = ("forward", "backward") if case.bidirectional else ("forward",)
+    steps = n * len(dirs)
+    channels = [
+        (p, name, x, y, inst, q)
+        for p, (name, x, y, inst, qs) in enumerate(case.sensors)
+        for q in qs
+    ]
+    rows = []
+    for run in range(1, case.runs + 1):
+        rate = rng.normal(0.0, case.drift, len(channels))
+        t = 0
+        for d in dirs:
+            order = range(n) if d == "forward" else range(n - 1, -1, -1)
+            for i in order:
+                for c, (p, name, x, y, inst, q) in enumerate(channels):
+                    sig = _sigma(inst, q)
+                    v = errors[i, p, QUANTITIES.index(q)]
+                    if noise:
+                        v += sig * (rng.normal() + rate[c] * t / max(steps - 1, 1))
+                    unit = "um" if q in LINEAR else "um/m"
+                    rows.append([pos[i], name, x, y, q, v, unit, run, d, inst, sig])
+                t += 1
+    if noise and case.outliers:
+        for k in rng.choice(len(rows), case.outliers, replace=False):
+            rows[k][5] += case.outlier_sigma * rows[k][10] * rng.choice((-1.0, 1.0))
+    lines = [
+        "# diffguide battery case " + case.name,
+        "position_mm,point,x_mm,y_mm,quantity,value,unit,run,direction,instrument",
+    ]
+    for p, name, x, y, q, v, unit, run, d, inst, _ in rows:
+        lines.append(f"{p:.3f},{name},{x:.1f},{y:.1f},{q},{v:.5f},{unit},{run},{d},{inst}")
+    return "\n".join(lines) + "\n"
+
+
+def measurements(case: Case, errors: np.ndarray | None = None, noise: bool = True):
+    """The case's readings through the input path: ``parse_readings`` + ``merge_readings``."""
+    from diffguide.measurements import merge_readings, parse_readings
+
+    text = readings_csv(case, errors, noise)
+    return merge_readings(parse_readings(text, case.name), source=case.name)
+
+
+# ----------------------------------------------------------------------------- the fit
+
+
+def run_fit(case: Case, meas):
+    """Fit ``meas`` with the preset's model — **the one place the battery calls the fit**.
+
+    Today: the ``majda2012`` preset (20 × 10 mesh, 50 mm plate, 8 % preload) at the measured
+    points, ``fit_rails(machine, meas)``. The structure-as-unknowns fit will take the machine
+    family here. Returns an object with ``profiles(s)``, ``basis``, ``fix_slope``,
+    ``converged`` and ``chi2_dof``.
+    """
+    from diffguide.inverse import fit_rails
+
+    points = dict(zip(meas.point_names, map(tuple, np.asarray(meas.points_xy, float))))
+    return fit_rails(fit_machine(points), meas)
+
+
+@dataclasses.dataclass
+class CaseResult:
+    """A case run end to end: the fit (``None`` when it raised: ``error``) and its score."""
+
+    case: Case
+    fit: object | None
+    error: str | None
+    score: object | None
+    seconds: float  # simulation excluded: readings → merged → fit → score
+
+
+def run_case(case: Case) -> CaseResult:
+    """Simulate, read, fit and score one case; an exception of the fit is recorded."""
+    from .score import score_fit
+
+    errors = simulate_errors(case)
+    t0 = time.perf_counter()
+    meas = measurements(case, errors)
+    try:
+        fit = run_fit(case, meas)
+    except Exception as exc:  # noqa: BLE001 — recorded, reported in the table and the tests
+        return CaseResult(
+            case, None, f"{type(exc).__name__}: {exc}", None, time.perf_counter() - t0
+        )
+    score = score_fit(fit, lambda s: truth_profiles(case, s))
+    return CaseResult(case, fit, None, score, time.perf_counter() - t0)
+
+
+_RESULTS: dict[str, CaseResult] = {}
+
+
+def result(name: str) -> CaseResult:
+    """:func:`run_case` of ``CASES[name]``, run once per process (module-level cache)."""
+    if name not in _RESULTS:
+        _RESULTS[name] = run_case(CASES[name]())
+    return _RESULTS[name]
