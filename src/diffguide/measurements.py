@@ -3,7 +3,7 @@ r"""Measured joint kinematic errors: read, validate and merge a measurement CSV 
 File format (UTF-8, comma separated, one header line; blank lines and lines starting with ``#``
 are skipped)::
 
-    position_mm,point,x_mm,y_mm,quantity,value,unit[,sigma][,run][,direction][,instrument]
+    position_mm,point,x_mm,y_mm,quantity,value,unit[,sigma][,run][,direction][,instrument][,z_mm]
 
 - ``position_mm``: table position ``x`` (mm). ``point``: the control point's name; ``x_mm``,
   ``y_mm``: where it is on the table top (mm, from the table centre; the same for every row of
@@ -16,10 +16,19 @@ are skipped)::
 - ``instrument``: ``level`` or ``interferometer``. Default: ``level`` for roll and pitch
   (``EAX``, ``EBX``), ``interferometer`` otherwise (only an interferometer measures yaw and the
   linear errors).
+- ``z_mm``: height of the instrument's sensing point above the table top (mm, default 0: on the
+  surface) — an interferometer's optics or a straightness reflector on a riser. A linear error
+  read there carries the Abbe terms of the table's rotation: ``EXX(z) = EXX + z·EBX``,
+  ``EYX(z) = EYX − z·EAX``; the angles do not depend on it.
 
-Merging (what a metrologist does with ISO 230-2 style runs), per channel = (point, quantity) and
-position:
+Merging (what a metrologist does with ISO 230-2 style runs), per channel = (point, quantity,
+instrument) — so a level and an interferometer at one point are two channels, each with its own
+zero — and position:
 
+0. gross outliers are set aside: within each direction at a position, with at least
+   :data:`MIN_RUNS_FOR_OUTLIERS` runs, a reading further than :data:`OUTLIER_Z` robust standard
+   deviations from the median of the other readings (the channel's pooled median absolute
+   deviation × 1.4826) is not used, and reported (:attr:`Measurements.rejected`);
 1. the readings of each direction are averaged over the runs;
 2. the value is the mean of the forward and backward means (so unequal run counts do not bias it;
    the reversal value, forward − backward, is kept for the report);
@@ -62,9 +71,13 @@ DEFAULT_SIGMA = {("level", "angular"): 4e-6, ("interferometer", "angular"): 2e-6
                  ("interferometer", "linear"): 1e-6}
 #: Degrees of freedom a channel's pooled scatter needs before it replaces the default σ.
 MIN_SCATTER_DOF = 20
+#: Readings per direction and position needed before a reading can be called an outlier.
+MIN_RUNS_FOR_OUTLIERS = 3
+#: Distance from the median of the other readings (robust σ) beyond which a reading is an outlier.
+OUTLIER_Z = 6.0
 
 REQUIRED = ("position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit")
-OPTIONAL = ("sigma", "run", "direction", "instrument")
+OPTIONAL = ("sigma", "run", "direction", "instrument", "z_mm")
 _FORWARD = ("forward", "fwd", "f", "+", "+1", "1", "up")
 _BACKWARD = ("backward", "bwd", "b", "reverse", "rev", "r", "-", "-1", "down")
 _MAX_BYTES = 200 * 1024 * 1024
@@ -85,6 +98,7 @@ class Reading:
     run: str
     direction: str  # "forward" or "backward"
     instrument: str
+    z: float = 0.0  # height of the sensing point above the table top (m)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -100,8 +114,10 @@ class Measurements:
         n_readings: readings merged into the row. reversal: forward − backward mean (NaN when
             the row is not bidirectional). instrument: per row.
         sigma_source: per row, ``"column"``, ``"scatter"`` or ``"default"``.
+        z: per row, height of the sensing point above the table top (m).
         readings: the validated input rows (empty when built from arrays). row_of_reading:
-            the merged row of each reading.
+            the merged row of each reading (−1 for a rejected outlier).
+        rejected: line numbers of the readings set aside as gross outliers.
         source: file name (for messages).
     """
 
@@ -116,13 +132,17 @@ class Measurements:
     reversal: np.ndarray
     instrument: tuple[str, ...]
     sigma_source: tuple[str, ...]
+    z: np.ndarray | None = None
     readings: tuple[Reading, ...] = ()
     row_of_reading: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
+    rejected: tuple[int, ...] = ()
     source: str = "<arrays>"
 
     def __post_init__(self):
         n = len(self.position)
-        for name in ("point", "quantity", "value", "sigma", "n_readings", "reversal"):
+        if self.z is None:
+            object.__setattr__(self, "z", np.zeros(n))
+        for name in ("point", "quantity", "value", "sigma", "n_readings", "reversal", "z"):
             if np.shape(getattr(self, name)) != (n,):
                 got = np.shape(getattr(self, name))
                 raise ValueError(f"{name} must have shape ({n},), got {got}")
@@ -142,14 +162,22 @@ class Measurements:
         return len(self.position)
 
     @property
-    def channels(self) -> list[tuple[int, int]]:
-        """The (point, quantity) pairs present, sorted."""
-        return sorted({(int(p), int(q)) for p, q in zip(self.point, self.quantity)})
+    def channels(self) -> list[tuple[int, int, str]]:
+        """The (point, quantity, instrument) triples present, sorted: each has its own zero."""
+        return sorted(set(self._keys()))
+
+    def _keys(self):
+        return [(int(p), int(q), i) for p, q, i in zip(self.point, self.quantity, self.instrument)]
 
     def channel_index(self) -> np.ndarray:
         """Index of each row's channel in :attr:`channels`."""
         lookup = {c: k for k, c in enumerate(self.channels)}
-        return np.array([lookup[(int(p), int(q))] for p, q in zip(self.point, self.quantity)])
+        return np.array([lookup[k] for k in self._keys()], int)
+
+    def channel_label(self, c: int) -> str:
+        """``"EBX at P1 (level)"`` for channel ``c``."""
+        p, q, inst = self.channels[c]
+        return f"{QUANTITIES[q]} at {self.point_names[p]} ({inst})"
 
     def with_values(self, value, sigma=None) -> "Measurements":
         """The same rows with other values (and σ), e.g. synthetic noise (SI)."""
@@ -159,8 +187,9 @@ class Measurements:
 
     @classmethod
     def from_arrays(cls, points: dict[str, tuple[float, float]], position, point, quantity,
-                    value, sigma, instrument=None) -> "Measurements":
-        """Merged rows from arrays (SI): ``point`` names, ``quantity`` names, one row each."""
+                    value, sigma, instrument=None, z=None) -> "Measurements":
+        """Merged rows from arrays (SI): ``point`` names, ``quantity`` names, one row each;
+        ``z`` the sensing height above the table top (m, default 0)."""
         names = tuple(points)
         pidx = np.array([names.index(p) for p in point])
         qidx = np.array([QUANTITIES.index(q) for q in quantity])
@@ -169,7 +198,8 @@ class Measurements:
             _default_instrument(QUANTITIES[q]) for q in qidx)
         return cls(names, np.array([points[k] for k in names], float), np.asarray(position, float),
                    pidx, qidx, np.asarray(value, float), np.broadcast_to(sigma, (n,)).astype(float),
-                   np.ones(n, int), np.full(n, np.nan), inst, ("column",) * n)
+                   np.ones(n, int), np.full(n, np.nan), inst, ("column",) * n,
+                   z=None if z is None else np.broadcast_to(z, (n,)).astype(float))
 
 
 def _default_instrument(quantity: str) -> str:
@@ -235,8 +265,13 @@ def _parse_row(row: dict, line: int) -> Reading:
     if instrument == "level" and quantity not in ("EAX", "EBX"):
         _field_error("instrument", row["instrument"], f"a level cannot measure {quantity}",
                      "level for EAX/EBX, interferometer for any quantity")
+    z = 0.0
+    if (row.get("z_mm") or "").strip():
+        z = _number(row, "z_mm", "mm") * 1e-3
+        if not abs(z) <= 2.0:
+            _field_error("z_mm", row["z_mm"], "out of range", "-2000 to 2000 mm")
     return Reading(line, position, point, xy, quantity, value, key, sigma, run, direction,
-                   instrument)
+                   instrument, z)
 
 
 def read_readings(path: str | os.PathLike) -> tuple[Reading, ...]:
@@ -324,6 +359,33 @@ def _check_header(header, name, line):
         )
 
 
+def _reject_outliers(groups) -> set[int]:
+    """``id``s of gross outliers (module docstring, step 0): per channel a robust σ from the
+    pooled absolute deviations from each direction's median; a reading further than
+    :data:`OUTLIER_Z` σ from the median of the *other* readings of its direction is rejected."""
+    dev = defaultdict(list)
+    for (p, q, inst, _), dirs in groups.items():
+        for rows in dirs.values():
+            if len(rows) >= MIN_RUNS_FOR_OUTLIERS:
+                v = np.array([r.value for r in rows])
+                dev[(p, q, inst)].extend(np.abs(v - np.median(v)).tolist())
+    scale = {k: 1.4826 * float(np.median(d)) for k, d in dev.items() if len(d) >= 10}
+    out = set()
+    for (p, q, inst, _), dirs in groups.items():
+        sc = scale.get((p, q, inst))
+        if not sc:
+            continue
+        for rows in dirs.values():
+            if len(rows) < MIN_RUNS_FOR_OUTLIERS:
+                continue
+            v = np.array([r.value for r in rows])
+            for k, r in enumerate(rows):
+                others = np.delete(v, k)
+                if abs(v[k] - np.median(others)) > OUTLIER_Z * sc:
+                    out.add(id(r))
+    return out
+
+
 def merge_readings(readings, source: str = "<readings>") -> Measurements:
     """Merge runs and directions (see the module docstring) into :class:`Measurements`."""
     readings = tuple(readings)
@@ -338,32 +400,39 @@ def merge_readings(readings, source: str = "<readings>") -> Measurements:
     groups: dict[tuple, dict[str, list[Reading]]] = defaultdict(lambda: {"forward": [],
                                                                          "backward": []})
     for r in readings:
-        groups[(names.index(r.point), QUANTITIES.index(r.quantity), round(r.position * 1e6))][
-            r.direction].append(r)
+        key = (names.index(r.point), QUANTITIES.index(r.quantity), r.instrument,
+               round(r.position * 1e6))
+        groups[key][r.direction].append(r)
+    rejected = _reject_outliers(groups)
+    if rejected:
+        for dirs in groups.values():
+            for d in dirs:
+                dirs[d] = [r for r in dirs[d] if id(r) not in rejected]
     # repeatability of one reading per channel from the within-direction scatter
     ss, dof = defaultdict(float), defaultdict(int)
-    for (p, q, _), dirs in groups.items():
+    for (p, q, inst, _), dirs in groups.items():
         for rows in dirs.values():
             if len(rows) > 1:
                 v = np.array([r.value for r in rows])
-                ss[(p, q)] += float(np.sum((v - v.mean()) ** 2))
-                dof[(p, q)] += len(rows) - 1
-    keys = sorted(groups, key=lambda k: (k[0], k[1], k[2]))
+                ss[(p, q, inst)] += float(np.sum((v - v.mean()) ** 2))
+                dof[(p, q, inst)] += len(rows) - 1
+    keys = sorted((k for k, d in groups.items() if d["forward"] or d["backward"]),
+                  key=lambda k: (k[0], k[1], k[2], k[3]))
     cols = defaultdict(list)
     row_of = {}
     for k, key in enumerate(keys):
-        p, q, _ = key
+        p, q, inst, _ = key
+        ch = (p, q, inst)
         dirs = groups[key]
         rows = dirs["forward"] + dirs["backward"]
-        instruments = {r.instrument for r in rows}
-        if len(instruments) > 1:
+        zs = {round(r.z * 1e6) for r in rows}
+        if len(zs) > 1:
             r0 = rows[-1]
             raise ValueError(
-                f"{source}:{r0.line}: field 'instrument': {names[p]} {QUANTITIES[q]} at "
-                f"{r0.position * 1e3:g} mm is measured with {sorted(instruments)}; use another "
-                "point name per instrument (allowed: one instrument per point and quantity)"
+                f"{source}:{r0.line}: field 'z_mm': {names[p]} {QUANTITIES[q]} ({inst}) at "
+                f"{r0.position * 1e3:g} mm is read at several heights (allowed: one height per "
+                "point, quantity and instrument; use another point name)"
             )
-        inst = rows[0].instrument
         means, var = [], []
         sources = set()
         for d in ("forward", "backward"):
@@ -377,8 +446,8 @@ def merge_readings(readings, source: str = "<readings>") -> Measurements:
                 if r.sigma is not None:
                     sig.append(r.sigma)
                     sources.add("column")
-                elif dof[(p, q)] >= MIN_SCATTER_DOF:
-                    sig.append(math.sqrt(ss[(p, q)] / dof[(p, q)]))
+                elif dof[ch] >= MIN_SCATTER_DOF:
+                    sig.append(math.sqrt(ss[ch] / dof[ch]))
                     sources.add("scatter")
                 else:
                     kind = "linear" if QUANTITIES[q] in LINEAR else "angular"
@@ -400,6 +469,7 @@ def merge_readings(readings, source: str = "<readings>") -> Measurements:
         cols["reversal"].append(means[0] - means[1] if len(means) == 2 else math.nan)
         cols["instrument"].append(inst)
         cols["source"].append("+".join(sorted(sources)))
+        cols["z"].append(rows[0].z)
         for r in rows:
             row_of[id(r)] = k
     return Measurements(
@@ -414,8 +484,10 @@ def merge_readings(readings, source: str = "<readings>") -> Measurements:
         reversal=np.array(cols["reversal"]),
         instrument=tuple(cols["instrument"]),
         sigma_source=tuple(cols["source"]),
+        z=np.array(cols["z"]),
         readings=readings,
-        row_of_reading=np.array([row_of[id(r)] for r in readings], int),
+        row_of_reading=np.array([row_of.get(id(r), -1) for r in readings], int),
+        rejected=tuple(sorted(r.line for r in readings if id(r) in rejected)),
         source=source,
     )
 

@@ -1,36 +1,51 @@
-r"""Rail profiles from measured joint kinematic errors: regularised Levenberg–Marquardt through the
-differentiable machine model (SPEC §2.5).
+r"""Rail profiles — and the machine's unknown structure — from measured joint kinematic errors:
+regularised Levenberg–Marquardt through the differentiable machine model.
 
-Residuals, one per merged measurement ``i`` in channel ``c(i)`` (a point and a quantity):
+**Unknowns** ``x = (θ, q, ℓ)``:
 
-.. math::  r_i(θ) = \bigl(m_i(Zθ) - y_i - o_{c(i)}\bigr)/σ_i,
+- ``θ``: the rail profiles' B-spline coefficients (µm, :mod:`.basis`) in the gauge-fixed
+  parametrisation ``c = Zθ``;
+- ``q``: the structural parameters (:mod:`.structure`: ``ln`` of the table's equivalent
+  thickness and of the preload relative to their prior values), scaled by their prior σ
+  (``q ~ N(0, 1)``);
+- ``ℓ``: the feed screw's lead error (µm), a cubic B-spline in the table position added to every
+  EXX channel — the model has no lead error, and a positioning channel without this term would
+  bend the rails to explain it (:data:`LEAD_KNOT_SPACING`).
 
-``m_i`` the model's joint error (:func:`diffguide.kinematics.joint_errors`, the equilibrium
-differentiated implicitly), ``o_c`` the channel's zero — every instrument reads relative to its
-own zero, so each channel's weighted mean misfit is profiled out (this also makes the fit
-independent of ``x_ref``). The fit minimises
+**Residuals**, one per merged measurement ``i`` of channel ``c(i)`` (point, quantity,
+instrument):
 
-.. math::  ‖r(θ)‖² + λ\,‖G Z θ‖²,
+.. math::  r_i = w_i\bigl(m_i(x) - y_i - o_{c(i)}\bigr)/σ_i,\qquad
+           m_i = E_{q_i}(P_i) + z_i\,A_{q_i}(P_i) + [q_i = \mathrm{EXX}]\,ℓ(x_i),
 
-(``‖G c‖² = Σ∫e''² ds + ℓ⁻⁴Σ∫e² ds``, see :mod:`.basis`) with
-``optimistix.LevenbergMarquardt`` on the
-stacked residual vector, started from the Gauss–Newton step at ``θ = 0`` (the model is nearly
-linear in the µm-sized rail errors).
+``E`` the model's joint errors (:func:`~diffguide.kinematics.joint_errors` of the machine at
+``q``, every equilibrium differentiated implicitly), ``z_i`` the sensing point's height above
+the table top with the Abbe terms ``A_EXX = EBX``, ``A_EYX = −EAX`` (0 otherwise), ``o_c`` each
+channel's zero — profiled out as the channel's weighted mean misfit — and ``w_i ∈ {0, 1}`` (0 for
+merged values rejected as outliers, below). The fit minimises
 
-Regularisation weight — **generalised cross-validation** (GCV; Craven & Wahba 1979):
-``λ = argmin N'‖r_λ‖²/(N' − tr A_λ)²`` on the problem linearised at the current estimate, ``A``
-the influence matrix and ``N'`` the data count less the channel zeros; re-evaluated at the
-solution and refitted once if it moved. Why GCV: (1) it needs no knowledge of σ — the
-discrepancy principle trusts the σ column fully, and a 20 % error in the stated repeatability
-moves its λ by orders of magnitude, while GCV still works when σ comes from a handful of runs;
-(2) with the penalty read as a Gaussian smoothness prior, the posterior bands at the GCV weight
-have close to nominal coverage *averaged over the profile* (Wahba 1983; Nychka 1988,
-J. Am. Stat. Assoc. 83, 1134), which is the use made of the bands here; (3) the L-curve has no
-such property and its corner is ill defined for slowly decaying singular values like ours.
+.. math::  ‖r(x)‖² + λ‖GZθ‖² + ‖q‖² + ε²‖ℓ‖²
 
-Posterior covariance (Gauss–Newton, the Bayesian reading of the penalty):
-``Cov θ = (J̃ᵀJ̃ + λ ZᵀGᵀGZ)⁻¹``, ``J̃ = ∂r/∂θ`` (jacfwd through the implicit equilibrium).
-``χ²/dof = ‖r‖²/(N − n_channels − tr A)``.
+(``‖Gc‖² = Σ∫e''² ds + ℓ_r⁻⁴Σ∫e² ds``; ``ε`` = 1e-3 µm⁻¹ keeps the lead term proper) with
+``optimistix.LevenbergMarquardt`` in coordinates that whiten the Gauss–Newton Hessian, started
+from the Gauss–Newton step at ``x = 0``. λ is chosen on the problem linearised at the current
+estimate (:mod:`.weight`: marginal likelihood by default, GCV on request, or given), with the
+structural and lead unknowns projected out, then re-chosen at the solution and the fit repeated
+once if it moved by more than a factor 1.5.
+
+**Outliers.** Gross outliers among the readings are set aside when merging
+(:mod:`diffguide.measurements`); a merged value whose standardised residual still exceeds
+:data:`OUTLIER_Z` after the fit is given zero weight and the fit repeated once (reported).
+
+**Uncertainty.** Gauss–Newton posterior ``Cov x = s²(JᵀJ + P)⁻¹``, ``P = diag(λΩ, I, ε²I)``,
+jointly over rails, structure and lead: the rails' bands include the structure's uncertainty.
+``s² = max(1, χ²/dof)``: when the model does not explain the data to their stated σ, the bands
+widen accordingly (never narrow). ``χ²/dof = ‖r‖² / (N − n_channels − tr R)``,
+``R = (JᵀJ + P)⁻¹JᵀJ``, ``0 ≤ tr R ≤ rank J``.
+
+**Always an answer.** The fit returns its best estimate whatever happens after the first
+linearisation: ``converged`` is False with the reason in ``message`` when LM stops on its step
+limit or an equilibrium fails.
 """
 
 import equinox as eqx
@@ -43,136 +58,128 @@ from .._precision import require_x64
 from ..kinematics import joint_errors
 from ..machine import Machine
 from ..measurements import QUANTITIES, Measurements
-from ..rails import SplineRail
+from ..rails import SplineRail, bspline_matrix
 from .basis import RailBasis, null_space_basis
+from .structure import MachineFamily, StructurePriors
+from .weight import WeightChoice, choose_weight, fixed_weight, project_out
 
 _UM = 1e-6
+#: Knot spacing of the lead-error spline (m), at most; at least 4 coefficients over the stroke.
+LEAD_KNOT_SPACING = 0.1
+#: Ridge on the lead-error coefficients (1/µm): a prior σ of 1 mm, i.e. none in practice.
+LEAD_RIDGE = 1e-3
+#: Standardised residual beyond which a merged value is an outlier.
+OUTLIER_Z = 5.0
+_EXX, _EYX = QUANTITIES.index("EXX"), QUANTITIES.index("EYX")
+_EAX, _EBX = QUANTITIES.index("EAX"), QUANTITIES.index("EBX")
 
 
 class _Problem(eqx.Module):
     """Everything the residual needs; arrays travel as arguments (never closed over)."""
 
-    machine: Machine
-    basis: RailBasis
+    family: MachineFamily
     positions: jax.Array
     pos_idx: jax.Array
     pt_idx: jax.Array
     q_idx: jax.Array
     value: jax.Array
     sigma: jax.Array
+    weight: jax.Array
+    z: jax.Array
+    lead: jax.Array
     chan: jax.Array
-    n_chan: int = eqx.field(static=True)
+    prior_sigma: jax.Array
     x_ref: jax.Array
+    start: float = eqx.field(static=True)
+    spacing: float = eqx.field(static=True)
+    n_coeffs: int = eqx.field(static=True)
+    n_chan: int = eqx.field(static=True)
+    n_q: int = eqx.field(static=True)
+
+    @property
+    def n_c(self) -> int:
+        return 4 * self.n_coeffs
 
 
-def _rails(c_um, basis: RailBasis):
-    c = c_um.reshape(2, 2, basis.n_coeffs) * _UM
-    return tuple(SplineRail(basis.start, basis.spacing, c[r, 0], c[r, 1]) for r in range(2))
+def _rails(c_um, prob: _Problem):
+    c = c_um.reshape(2, 2, prob.n_coeffs) * _UM
+    return tuple(SplineRail(prob.start, prob.spacing, c[r, 0], c[r, 1]) for r in range(2))
 
 
-def _model(c_um, prob: _Problem):
-    """Model values (SI) at every merged measurement and whether every equilibrium converged;
-    ``c_um``: the stacked spline coefficients (µm)."""
-    je = joint_errors(prob.machine, _rails(c_um, prob.basis), prob.positions, prob.x_ref)
-    return je.errors[prob.pos_idx, prob.pt_idx, prob.q_idx], jnp.all(je.converged)
+def _model(v, prob: _Problem):
+    """Model values (SI) at every merged measurement, and whether every equilibrium converged;
+    ``v = (c, q, ℓ)``: all rail coefficients (µm), structure, lead (µm)."""
+    c = v[: prob.n_c]
+    q = v[prob.n_c: prob.n_c + prob.n_q]
+    ell = v[prob.n_c + prob.n_q:]
+    machine = prob.family.machine(q * prob.prior_sigma)
+    je = joint_errors(machine, _rails(c, prob), prob.positions, prob.x_ref)
+    E = je.errors[prob.pos_idx, prob.pt_idx]  # (N, 6)
+    base = jnp.take_along_axis(E, prob.q_idx[:, None], axis=1)[:, 0]
+    abbe = jnp.where(prob.q_idx == _EXX, E[:, _EBX], jnp.where(prob.q_idx == _EYX, -E[:, _EAX],
+                                                                0.0))
+    pred = base + prob.z * abbe + (prob.lead @ ell) * _UM
+    return pred, jnp.all(je.converged)
 
 
-def _data_residual(c_um, prob: _Problem):
-    return _data_residual_full(c_um, prob)[0]
-
-
-def _data_residual_full(c_um, prob: _Problem):
+def _data_residual_full(x, prob: _Problem):
     """Whitened residuals with the channel zeros profiled out, model values, convergence."""
-    pred, ok = _model(c_um, prob)
+    pred, ok = _model(x, prob)
     d = pred - prob.value
-    w = 1.0 / prob.sigma**2
-    off = jax.ops.segment_sum(w * d, prob.chan, prob.n_chan) / jax.ops.segment_sum(
-        w, prob.chan, prob.n_chan)
-    return (d - off[prob.chan]) / prob.sigma, pred, ok
+    w = prob.weight / prob.sigma**2
+    off = jax.ops.segment_sum(w * d, prob.chan, prob.n_chan) / jnp.maximum(
+        jax.ops.segment_sum(w, prob.chan, prob.n_chan), 1e-300)
+    return prob.weight * (d - off[prob.chan]) / prob.sigma, pred, ok
 
 
-def _residual_and_jacobian(theta, Z, prob: _Problem):
-    """``r(Zθ)`` and ``∂r/∂θ`` (forward mode only: PITFALLS, never jacrev)."""
-    J, r = jax.jacfwd(lambda t: (_data_residual(Z @ t, prob),) * 2, has_aux=True)(theta)
+def _residual_and_jacobian(x, prob: _Problem):
+    """``r(x)`` and ``∂r/∂x`` (forward mode only: never ``jacrev`` through the equilibrium)."""
+    J, r = jax.jacfwd(lambda t: (_data_residual_full(t, prob)[0],) * 2, has_aux=True)(x)
     return r, J
 
 
 @eqx.filter_custom_jvp
-def _data_residual_lm(theta, Z, prob: _Problem):
-    """:func:`_data_residual` whose JVP is ``J·dθ`` with ``J`` built in the primal pass.
+def _data_residual_lm(phi, T, prob: _Problem):
+    """The data residual at ``v = Tφ`` whose JVP is ``J·T·dφ`` with ``J`` built in the primal pass.
 
-    LevenbergMarquardt linearises its residual once per step and, at step 0, queries a
-    zero-filled placeholder of that linearisation. Through the plain model the placeholder
-    reaches the equilibrium's implicit linear solve as a zero operator, which raises
-    ("non-finite input", ../shared/PITFALLS.md); here the linearisation holds only the matrix
-    ``J``, and a zero ``J`` is harmless. The cost is the same: LM materialises ``J`` anyway.
+    LevenbergMarquardt queries a zero-filled placeholder of its linearisation at step 0; through
+    the plain model that placeholder reaches the equilibrium's implicit linear solve as a zero
+    operator, which raises. Here the linearisation holds only the matrix ``J``.
     """
-    return _data_residual(Z @ theta, prob)
+    return _data_residual_full(T @ phi, prob)[0]
 
 
 @_data_residual_lm.def_jvp
 def _data_residual_lm_jvp(primals, tangents):
-    theta, Z, prob = primals
-    dtheta = tangents[0]
-    r, J = _residual_and_jacobian(theta, Z, prob)
-    return r, (jnp.zeros_like(r) if dtheta is None else J @ dtheta)
+    phi, T, prob = primals
+    dphi = tangents[0]
+    r, J = _residual_and_jacobian(T @ phi, prob)
+    return r, (jnp.zeros_like(r) if dphi is None else J @ (T @ dphi))
 
 
-def _lm_residual(theta, args):
-    prob, Z, GZ, sqrt_lam = args
-    return jnp.concatenate([_data_residual_lm(theta, Z, prob), sqrt_lam * (GZ @ theta)])
+def _lm_residual(phi, args):
+    prob, MT, T, Pf = args  # v = MTφ (all coefficients), x = Tφ (gauge-fixed unknowns)
+    return jnp.concatenate([_data_residual_lm(phi, MT, prob), Pf @ (T @ phi)])
 
 
 @eqx.filter_jit
-def _linearise(c_um, prob: _Problem):
-    """Residual, Jacobian w.r.t. all coefficients ``c`` (µm), model values, convergence."""
+def _linearise(v, prob: _Problem):
+    """Residual, Jacobian w.r.t. ``v = (c, q, ℓ)``, model values, convergence."""
 
-    def f(c):
-        r, pred, ok = _data_residual_full(c, prob)
+    def f(t):
+        r, pred, ok = _data_residual_full(t, prob)
         return r, (r, pred, ok)
 
-    J, (r, pred, ok) = jax.jacfwd(f, has_aux=True)(c_um)
+    J, (r, pred, ok) = jax.jacfwd(f, has_aux=True)(v)
     return r, J, pred, ok
 
 
 @eqx.filter_jit
-def _lm(theta0, args, rtol, atol, max_steps: int):
+def _lm(phi0, args, rtol, atol, max_steps: int):
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
-    sol = optx.least_squares(
-        _lm_residual, solver, theta0, args=args, max_steps=max_steps, throw=False,
-    )
+    sol = optx.least_squares(_lm_residual, solver, phi0, args=args, max_steps=max_steps,
+                             throw=False)
     return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"]
-
-
-def gcv_weight(J, r, Omega, n_eff: int, lam_grid=None):
-    """GCV over λ for the linear problem ``min ‖J δ + r‖² + λ (θ+δ)ᵀΩ(θ+δ)`` at ``θ = 0``.
-
-    Returns ``(λ, score, table)`` with ``table`` the ``(λ, GCV)`` pairs tried.
-    """
-    M = J.T @ J
-    g = J.T @ r
-    if lam_grid is None:
-        lam0 = np.trace(M) / max(np.trace(Omega), 1e-300)
-        lam_grid = lam0 * np.logspace(-14, 4, 73)
-
-    def score(lam):
-        H = M + lam * Omega
-        try:
-            delta = -np.linalg.solve(H, g)
-            tr = np.trace(np.linalg.solve(H, M))
-        except np.linalg.LinAlgError:
-            return np.inf
-        res = r + J @ delta
-        return n_eff * (res @ res) / max(n_eff - tr, 1e-9) ** 2
-
-    scores = np.array([score(lam) for lam in lam_grid])
-    k = int(np.argmin(scores))
-    lo, hi = lam_grid[max(k - 1, 0)], lam_grid[min(k + 1, len(lam_grid) - 1)]
-    fine = np.geomspace(lo, hi, 17)
-    fs = np.array([score(lam) for lam in fine])
-    j = int(np.argmin(fs))
-    table = np.concatenate([np.stack([lam_grid, scores], 1), np.stack([fine, fs], 1)])
-    return float(fine[j]), float(fs[j]), table[np.argsort(table[:, 0])]
 
 
 class RailFit(eqx.Module):
@@ -181,17 +188,25 @@ class RailFit(eqx.Module):
     Attributes:
         basis: the knot grid. coeffs: ``(2 rails, 2 planes, n)`` spline coefficients (m),
             planes ``(vertical, horizontal)``. cov: posterior covariance of the stacked
-            coefficients (order of :data:`~.basis.PROFILES`; m²).
-        Z: the gauge-fixed parametrisation (``c = Z θ``). gauge: names of the fixed modes.
+            coefficients (order of :data:`~.basis.PROFILES`; m²), marginal over the structure
+            and lead unknowns, scaled by ``sigma_scale²``.
+        Z: the gauge-fixed parametrisation (``c = Zθ``). gauge: names of the fixed modes.
         fix_slope: which planes have the common slope fixed.
-        lam: regularisation weight (GCV). gcv: its score. lam_table: ``(λ, GCV)`` tried.
+        lam: regularisation weight. weight: how it was chosen (:class:`.weight.WeightChoice`).
+        structure: per structural unknown ``{value, sigma, prior_value, prior_sigma,
+            determined, at_bound}`` (thickness in m, preload as a fraction; σ of the value).
+        lead: lead-error coefficients (m) and ``lead_basis`` ``(start, spacing, n)`` (m);
+            empty without EXX data.
         fitted: model at every merged measurement, shifted by its channel zero (m or rad).
         residual: measured − fitted. offsets: each channel's zero (model − measured).
-        chi2, dof, edf: χ², degrees of freedom ``N − n_channels − edf``, effective parameters.
-        converged: LM and every equilibrium converged. steps: LM steps (all outer passes).
-        jacobian: whitened data Jacobian ``∂r/∂θ`` at the solution; jacobian_full: the same
-            w.r.t. all coefficients ``c`` (µm), gauge modes included. Omega: ``ZᵀGᵀGZ``.
-        rigid: fitted with the rigid-table model.
+        outliers: merged rows given zero weight. chi2, dof, edf: χ² of the used rows, degrees
+            of freedom ``N − n_channels − edf``, effective parameters (all unknowns).
+        sigma_scale: ``max(1, χ²/dof)^½``, applied to every σ. converged: LM and every
+            equilibrium converged. message: what happened, in words. steps: LM steps.
+        jacobian: whitened data Jacobian ``∂r/∂x`` at the solution (all unknowns);
+            jacobian_full: the same w.r.t. all rail coefficients ``c`` (µm), gauge modes
+            included. penalty: ``P``. n_theta: rail unknowns (first columns of ``jacobian``).
+            Omega: ``ZᵀGᵀGZ``. rigid: fitted with the rigid-table model.
     """
 
     basis: RailBasis
@@ -201,24 +216,36 @@ class RailFit(eqx.Module):
     gauge: tuple[str, ...] = eqx.field(static=True)
     fix_slope: tuple[bool, bool] = eqx.field(static=True)
     lam: float
-    gcv: float
-    lam_table: np.ndarray
+    weight: WeightChoice
+    structure: dict
+    lead: np.ndarray
+    lead_basis: tuple
     fitted: np.ndarray
     residual: np.ndarray
     offsets: np.ndarray
+    outliers: np.ndarray
     chi2: float
     dof: float
     edf: float
+    sigma_scale: float
     converged: bool
+    message: str
     steps: int
     jacobian: np.ndarray
     jacobian_full: np.ndarray
+    penalty: np.ndarray
+    n_theta: int
     Omega: np.ndarray
     rigid: bool = eqx.field(static=True)
 
     @property
     def chi2_dof(self) -> float:
-        return self.chi2 / self.dof
+        return self.chi2 / self.dof if self.dof > 0 else float("nan")
+
+    @property
+    def gcv(self) -> float:
+        """The weight criterion's score (kept for the report; NaN for a given λ)."""
+        return self.weight.score
 
     def profiles(self, s) -> tuple[np.ndarray, np.ndarray]:
         """Profiles and their posterior σ at ``s`` (m): two ``(2 rails, 2 planes, len(s))``
@@ -248,129 +275,269 @@ def visited_range(machine: Machine, positions) -> tuple[float, float]:
     return float(x.min() + xc.min() + xi.min()), float(x.max() + xc.max() + xi.max())
 
 
-def _problem(machine, meas: Measurements, basis, x_ref):
-    positions, pos_idx = np.unique(np.round(meas.position, 9), return_inverse=True)
-    chan = meas.channel_index()
-    return _Problem(
-        machine=machine, basis=basis, positions=jnp.asarray(positions),
-        pos_idx=jnp.asarray(pos_idx), pt_idx=jnp.asarray(meas.point),
-        q_idx=jnp.asarray(meas.quantity), value=jnp.asarray(meas.value),
-        sigma=jnp.asarray(meas.sigma), chan=jnp.asarray(chan), n_chan=int(chan.max()) + 1,
-        x_ref=jnp.asarray(float(x_ref)),
-    )
+def _lead_basis(meas: Measurements):
+    """The lead-error spline over the positions of the EXX rows: ``(B (N, n), (start, h, n))``;
+    no columns without EXX data."""
+    exx = np.asarray(meas.quantity) == _EXX
+    if not exx.any():
+        return np.zeros((meas.n, 0)), ()
+    x = np.asarray(meas.position)[exx]
+    lo, hi = float(x.min()), float(x.max())
+    if hi - lo < 1e-9:
+        return np.zeros((meas.n, 0)), ()
+    basis = RailBasis.covering(lo, hi, min(LEAD_KNOT_SPACING, (hi - lo) / 1.0))
+    B = np.zeros((meas.n, basis.n_coeffs))
+    B[exx] = bspline_matrix(x, basis.start, basis.spacing, basis.n_coeffs)
+    return B, (basis.start, basis.spacing, basis.n_coeffs)
+
+
+def _as_family(machine) -> MachineFamily:
+    if isinstance(machine, MachineFamily):
+        return machine
+    return MachineFamily(machine, None, (), 0.0, 1.0, StructurePriors())
 
 
 def fit_rails(
-    machine: Machine,
+    machine,
     meas: Measurements,
     *,
     knot_spacing: float | None = None,
     lam: float | None = None,
+    criterion: str = "ml",
     x_ref: float = 0.0,
-    rtol: float = 1e-5,
-    atol: float = 1e-5,
-    max_steps: int = 40,
+    rtol: float = 1e-6,
+    atol: float = 1e-6,
+    max_steps: int = 60,
     method: str = "lm",
+    reject_outliers: bool = True,
 ) -> RailFit:
-    """Fit the rail straightness profiles to merged measurements (see the module docstring).
+    """Fit the rail straightness profiles (and the structure) to merged measurements.
 
     Arguments:
-        machine: the machine model whose points are ``meas.point_names`` (same order);
-            ``machine.with_rigid_table()`` gives the classical rigid-table inversion.
+        machine: a :class:`~diffguide.machine.Machine` (structure fixed) or a
+            :class:`~.structure.MachineFamily` (structure estimated), whose points are
+            ``meas.point_names`` (same order); ``machine.with_rigid_table()`` gives the classical
+            rigid-table inversion.
         meas: merged measurements (:func:`diffguide.measurements.read_measurements`).
         knot_spacing: requested knot spacing (m); default the carriage's loaded length
             (``n·p``, 48 mm for ``majda2012``): shorter wavelengths are averaged out by the
-            carriage (``H_z`` has its first zero at ``λ = n·p``), so finer knots only add
-            undetermined unknowns. The actual spacing divides the visited length evenly.
-        lam: regularisation weight; default GCV (module docstring).
+            carriage, so finer knots only add undetermined unknowns.
+        lam: regularisation weight; default chosen by ``criterion`` (:mod:`.weight`).
+        criterion: ``"ml"`` (marginal likelihood) or ``"gcv"``.
         x_ref: reference position of the model (m); the result does not depend on it.
-        rtol, atol: LM tolerances (θ in µm, residuals whitened). max_steps: LM step limit.
-        method: ``"lm"`` (Levenberg–Marquardt through the nonlinear model) or ``"linear"``
-            (the model linearised at straight rails, solved once: the classical linear
-            inversion, used for the rigid-table alternative).
+        rtol, atol: LM tolerances (unknowns whitened). max_steps: LM step limit per pass.
+        method: ``"lm"`` (through the nonlinear model) or ``"linear"`` (linearised at straight
+            rails and solved once: the classical linear inversion).
+        reject_outliers: zero-weight merged values beyond :data:`OUTLIER_Z` and refit once.
+
+    Raises ``ValueError`` for inputs that cannot be fitted at all (mismatched points, fewer data
+    than channels, a model that does not converge for straight rails); everything after that
+    returns a :class:`RailFit` (see ``converged`` and ``message``).
     """
     if method not in ("lm", "linear"):
         raise ValueError(f"method must be 'lm' or 'linear', got {method!r}")
     require_x64("fit_rails")
-    if tuple(machine.point_names) != tuple(meas.point_names):
+    family = _as_family(machine)
+    base = family.base
+    if tuple(base.point_names) != tuple(meas.point_names):
         raise ValueError(
-            f"the machine's points {machine.point_names} differ from the measurement points "
+            f"the machine's points {base.point_names} differ from the measurement points "
             f"{meas.point_names}; build the machine with points=... from the measurements"
         )
     if knot_spacing is None:
-        knot_spacing = machine.carriage.length
-    lo, hi = visited_range(machine, meas.position)
+        knot_spacing = base.carriage.length
+    lo, hi = visited_range(base, meas.position)
     basis = RailBasis.covering(lo, hi, knot_spacing)
-    q = {QUANTITIES[k] for k in np.unique(meas.quantity)}
-    fix_slope = ("EZX" not in q, "EYX" not in q)
+    qs = {QUANTITIES[k] for k in np.unique(meas.quantity)}
+    fix_slope = ("EZX" not in qs, "EYX" not in qs)
     C, gauge = basis.gauge_functionals(fix_slope)
     Z = null_space_basis(C, basis.size)
     G = np.concatenate([basis.penalty_factor(), basis.amplitude_factor()])
     GZ = G @ Z
     Omega = GZ.T @ GZ
-    prob = _problem(machine, meas, basis, x_ref)
-    n_eff = meas.n - prob.n_chan
-    if n_eff <= 0:
-        raise ValueError(f"{meas.n} measurements in {prob.n_chan} channels: nothing to fit")
+    lead_B, lead_basis = _lead_basis(meas)
+    n_theta, n_q, n_l = Z.shape[1], family.n_params, lead_B.shape[1]
+    n_x = n_theta + n_q + n_l
+    positions, pos_idx = np.unique(np.round(meas.position, 9), return_inverse=True)
+    chan = meas.channel_index()
+    n_chan = int(chan.max()) + 1
+    prob = _Problem(
+        family=family, positions=jnp.asarray(positions),
+        pos_idx=jnp.asarray(pos_idx), pt_idx=jnp.asarray(meas.point),
+        q_idx=jnp.asarray(meas.quantity), value=jnp.asarray(meas.value),
+        sigma=jnp.asarray(meas.sigma), weight=jnp.ones(meas.n), z=jnp.asarray(meas.z),
+        lead=jnp.asarray(lead_B), chan=jnp.asarray(chan),
+        prior_sigma=jnp.asarray(family.prior_sigma()), x_ref=jnp.asarray(float(x_ref)),
+        start=basis.start, spacing=basis.spacing, n_coeffs=basis.n_coeffs, n_chan=n_chan,
+        n_q=n_q,
+    )
+    M = np.zeros((basis.size + n_q + n_l, n_x))  # v = M x
+    M[:basis.size, :n_theta] = Z
+    M[basis.size:, n_theta:] = np.eye(n_q + n_l)
 
-    theta = np.zeros(Z.shape[1])
-    r, Jc, _, ok = (np.asarray(v) for v in _linearise(jnp.zeros(basis.size), prob))
-    J = Jc @ Z
-    if not ok:
-        raise ValueError("the machine equilibrium did not converge for straight rails")
-    fixed = lam is not None
-    table = np.zeros((0, 2))
-    score = float("nan")
-    if not fixed:
-        lam, score, table = gcv_weight(J, r, Omega, n_eff)
-    theta = -np.linalg.solve(J.T @ J + lam * Omega, J.T @ r)  # Gauss–Newton start
-    steps, converged = 0, True
-    pred = np.full(meas.n, np.nan)  # the model at the solution (LM only)
-    for _ in range(2 if method == "lm" else 0):
-        # LM works on φ with θ = T φ, T = L⁻ᵀ from the Cholesky factor of the Gauss–Newton
-        # Hessian: isotropic damping then suits every direction (the Hessian's eigenvalues span
-        # ~10 decades, and LM with identity damping crawls along the small ones).
-        T = _preconditioner(J.T @ J + lam * Omega)
-        args = (prob, jnp.asarray(Z @ T), jnp.asarray(GZ @ T), jnp.asarray(np.sqrt(lam)))
-        phi0 = np.linalg.solve(T, theta)
-        value, lm_ok, n = _lm(jnp.asarray(phi0), args, rtol, atol, max_steps)
-        theta, steps, converged = T @ np.asarray(value), steps + int(n), bool(lm_ok)
-        r, Jc, pred, ok = (np.asarray(v) for v in _linearise(jnp.asarray(Z @ theta), prob))
-        J = Jc @ Z
-        converged = converged and bool(ok)
-        if fixed:
+    def linearise(x_):
+        r_, Jv, pred_, ok_ = (np.asarray(a) for a in _linearise(jnp.asarray(M @ x_), prob))
+        return r_, Jv @ M, pred_, ok_, Jv[:, :basis.size]
+    if meas.n - n_chan - n_l <= 0:
+        raise ValueError(f"{meas.n} measurements in {n_chan} channels: nothing to fit")
+
+    def penalty(lam_):
+        P = np.zeros((n_x, n_x))
+        P[:n_theta, :n_theta] = lam_ * Omega
+        P[n_theta:n_theta + n_q, n_theta:n_theta + n_q] = np.eye(n_q)
+        P[n_theta + n_q:, n_theta + n_q:] = LEAD_RIDGE**2 * np.eye(n_l)
+        return P
+
+    def choose(J, r, x, weights):
+        """λ on the problem linearised at ``x`` (nuisance columns projected out)."""
+        used = int(np.sum(weights > 0))
+        y = -(r - J @ x)  # the data in the total unknown: r(x + δ) ≈ r − Jx + J(x + δ)
+        Jt, yp, rank_f = project_out(J[:, n_theta:], J[:, :n_theta], y)
+        n_eff = used - n_chan - rank_f
+        if lam is not None:
+            return fixed_weight(lam, Jt, yp, Omega, n_eff)
+        return choose_weight(Jt, yp, Omega, n_eff, criterion)
+
+    x = np.zeros(n_x)
+    r, J, pred, ok, Jc = linearise(x)
+    if not ok or not np.all(np.isfinite(J)):
+        raise ValueError("the machine equilibrium did not converge for straight rails at the "
+                         "prior structure; check the machine configuration")
+    weights = np.ones(meas.n)
+    choice = choose(J, r, x, weights)
+    P = penalty(choice.lam)
+    x = np.linalg.solve(_spd(J.T @ J + P), -(J.T @ r))  # Gauss–Newton start
+    steps, converged, message = 0, True, "converged"
+    outliers = np.zeros(0, int)
+    passes = 0
+    while method == "lm":
+        passes += 1
+        # LM works on φ with x = Tφ, TᵀHT = I (H the Gauss–Newton Hessian): isotropic damping
+        # then suits every direction (its eigenvalues span ~10 decades).
+        T = _preconditioner(J.T @ J + P)
+        Pf = _sqrt_psd(P)
+        args = (prob, jnp.asarray(M @ T), jnp.asarray(T), jnp.asarray(Pf))
+        value, lm_ok, n = _lm(jnp.asarray(np.linalg.solve(T, x)), args, rtol, atol, max_steps)
+        x_new = T @ np.asarray(value)
+        steps += int(n)
+        r_new, J_new, pred_new, ok_new, Jc_new = linearise(x_new)
+        if not (bool(ok_new) and np.all(np.isfinite(J_new)) and np.all(np.isfinite(r_new))):
+            converged, message = False, ("an equilibrium did not converge at the LM solution; "
+                                         "the last estimate whose equilibria all converged is "
+                                         "returned")
             break
-        # GCV again, linearised at the solution (the penalty acts on the total θ)
-        new_lam, score, table = _gcv_at(J, r, theta, Omega, n_eff)
-        if abs(np.log(new_lam / lam)) < np.log(1.5):
-            lam = new_lam
+        x, r, J, pred, Jc = x_new, r_new, J_new, pred_new, Jc_new
+        if not bool(lm_ok):
+            converged, message = False, (f"Levenberg-Marquardt stopped after {int(n)} steps "
+                                         "without meeting its tolerance; the best estimate so far "
+                                         "is returned")
+        else:
+            converged, message = True, "converged"
+        if passes >= 4:
             break
-        lam = new_lam
+        redo = False
+        if reject_outliers and passes <= 2:
+            scale = np.sqrt(max(_chi2_dof(J, r, P, weights, n_chan), 1.0))
+            bad = np.flatnonzero((weights > 0) & (np.abs(r) > OUTLIER_Z * scale))
+            if bad.size and bad.size <= 0.05 * meas.n:
+                weights[bad] = 0.0
+                outliers = np.union1d(outliers, bad)
+                prob = eqx.tree_at(lambda p: p.weight, prob, jnp.asarray(weights))
+                r, J, pred, _, Jc = linearise(x)
+                redo = True
+        if lam is None:
+            new = choose(J, r, x, weights)
+            if abs(np.log(new.lam / choice.lam)) >= np.log(1.5):
+                redo = True
+            choice = new
+            P = penalty(choice.lam)
+        if not redo:
+            break
     if method == "linear":  # residuals of the linear model at the solution
-        r = r + J @ theta
-    H = J.T @ J + lam * Omega
-    cov_theta = np.linalg.inv(H)
-    cov_theta = 0.5 * (cov_theta + cov_theta.T)
-    edf = float(np.trace(cov_theta @ (J.T @ J)))
+        r = r + J @ x
+    H = _spd(J.T @ J + P)
+    Hinv = np.linalg.inv(H)
+    Hinv = 0.5 * (Hinv + Hinv.T)
+    edf = float(np.trace(Hinv @ (J.T @ J)))
     chi2 = float(r @ r)
+    used = int(np.sum(weights > 0))
+    dof = float(used - n_chan - edf)
+    sigma_scale = float(np.sqrt(max(chi2 / dof, 1.0))) if dof > 0 else 1.0
+    cov_x = Hinv * sigma_scale**2
     sigma = np.asarray(meas.sigma)
-    residual = -r * sigma  # measured − fitted, with the channel zero profiled out
+    residual = np.where(weights > 0, -r / np.where(weights > 0, weights, 1.0), 0.0) * sigma
+    if method == "lm":
+        # measured − fitted for every row (outliers included), with the channel zeros
+        d = pred - np.asarray(meas.value)
+        off = _channel_offsets(d, sigma, weights, chan, n_chan)
+        residual = -(d - off[chan])
+        offsets = off
+    else:
+        offsets = np.full(n_chan, np.nan)
     fitted = np.asarray(meas.value) - residual
-    offsets = np.array([np.nan] * prob.n_chan)
-    chan = np.asarray(prob.chan)
-    for c in range(prob.n_chan):
-        sel = chan == c
-        offsets[c] = np.mean((pred - fitted)[sel])  # NaN for the linear method
+    theta = x[:n_theta]
     c_um = Z @ theta
-    cov = Z @ cov_theta @ Z.T * _UM**2
+    cov = Z @ cov_x[:n_theta, :n_theta] @ Z.T * _UM**2
+    structure = _structure_report(family, x[n_theta:n_theta + n_q],
+                                  cov_x[n_theta:n_theta + n_q, n_theta:n_theta + n_q])
+    if choice.at_bound:
+        message += (f"; the {choice.criterion} weight search ended on its range's edge "
+                    f"(lambda {choice.lam:.3g})")
     return RailFit(
         basis=basis, coeffs=(c_um * _UM).reshape(2, 2, basis.n_coeffs), cov=cov, Z=Z,
-        gauge=tuple(gauge), fix_slope=fix_slope, lam=float(lam), gcv=float(score),
-        lam_table=table, fitted=fitted, residual=residual, offsets=offsets, chi2=chi2,
-        dof=float(n_eff - edf), edf=edf, converged=converged, steps=steps, jacobian=J,
-        jacobian_full=Jc,
-        Omega=Omega, rigid=bool(machine.rigid),
+        gauge=tuple(gauge), fix_slope=fix_slope, lam=float(choice.lam), weight=choice,
+        structure=structure, lead=x[n_theta + n_q:] * _UM, lead_basis=lead_basis,
+        fitted=fitted, residual=residual, offsets=offsets, outliers=outliers, chi2=chi2,
+        dof=dof, edf=edf, sigma_scale=sigma_scale, converged=bool(converged), message=message,
+        steps=steps, jacobian=J, jacobian_full=Jc, penalty=P, n_theta=n_theta, Omega=Omega,
+        rigid=bool(base.rigid),
     )
+
+
+def _channel_offsets(d, sigma, weights, chan, n_chan):
+    w = weights / sigma**2
+    num = np.bincount(chan, w * d, n_chan)
+    den = np.bincount(chan, w, n_chan)
+    return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+
+
+def _chi2_dof(J, r, P, weights, n_chan):
+    H = _spd(J.T @ J + P)
+    edf = float(np.trace(np.linalg.solve(H, J.T @ J)))
+    dof = np.sum(weights > 0) - n_chan - edf
+    return float(r @ r / dof) if dof > 0 else 1.0
+
+
+def _structure_report(family: MachineFamily, q, cov_q) -> dict:
+    out = {}
+    prior_sig = family.prior_sigma()
+    values = family.values(q * prior_sig)
+    for i, name in enumerate(family.names):
+        pr = getattr(family.priors, name)
+        sd_log = float(np.sqrt(max(cov_q[i, i], 0.0))) * prior_sig[i]
+        lo, hi = family.bounds()[i]
+        u = q[i] * prior_sig[i]
+        out[name] = {
+            "value": values[name],
+            "sigma": values[name] * sd_log,
+            "sigma_log": sd_log,
+            "prior_value": pr.value,
+            "prior_range": [pr.lo, pr.hi],
+            "prior_sigma_log": float(prior_sig[i]),
+            "determined": bool(sd_log < 0.7 * prior_sig[i]),
+            "at_bound": bool(u <= lo + 1e-9 or u >= hi - 1e-9),
+        }
+    return out
+
+
+def _spd(H):
+    H = 0.5 * (H + H.T)
+    return H
+
+
+def _sqrt_psd(P):
+    w, V = np.linalg.eigh(0.5 * (P + P.T))
+    return (V * np.sqrt(np.maximum(w, 0.0))) @ V.T
 
 
 def _preconditioner(H):
@@ -382,10 +549,3 @@ def _preconditioner(H):
         w, V = np.linalg.eigh(0.5 * (H + H.T))
         w = np.maximum(w, 1e-12 * w.max())
         return V / np.sqrt(w)
-
-
-def _gcv_at(J, r, theta, Omega, n_eff):
-    """GCV for the Gauss–Newton step from ``theta``: the penalty acts on ``θ + δ``."""
-    # shift to a problem in the total unknown: data residual r + J δ = (r − Jθ) + J θ_total
-    r0 = r - J @ theta
-    return gcv_weight(J, r0, Omega, n_eff)

@@ -65,12 +65,13 @@ def identifiability(fit, machine=None, *, n_wavelengths: int = 40, threshold: fl
         n_wavelengths: wavelengths between twice the knot spacing and twice the rail length.
         threshold: transfer below which a component is called undetermined.
     """
-    basis, Z, J, Om = fit.basis, fit.Z, fit.jacobian, fit.Omega
+    basis, Z, J = fit.basis, fit.Z, fit.jacobian
     n = basis.n_coeffs
+    nt = fit.n_theta
     M = J.T @ J
-    H = M + fit.lam * Om
-    Hinv = np.linalg.inv(H)
-    R = Hinv @ M
+    H = M + fit.penalty
+    R_all = np.linalg.solve(H, M)
+    R = R_all[:nt, :nt]  # the rails' resolution, the structure and lead marginalised
 
     # 1. gauge modes
     Jc = fit.jacobian_full
@@ -98,8 +99,9 @@ def identifiability(fit, machine=None, *, n_wavelengths: int = 40, threshold: fl
     rank_def = int(np.sum(sv_full < tol)) + max(Jc.shape[1] - Jc.shape[0], 0)
 
     # 2. singular values and filter factors
-    sv = np.linalg.svd(J, compute_uv=False)
+    sv = np.linalg.svd(J[:, :nt], compute_uv=False)
     mu = np.sort(np.real(np.linalg.eigvals(R)))[::-1]
+    mu = np.clip(mu, 0.0, 1.0)
 
     # 3. wavelength transfer
     L = basis.end - basis.start
@@ -162,9 +164,12 @@ def identifiability(fit, machine=None, *, n_wavelengths: int = 40, threshold: fl
             "all_coefficients_smallest": sv_full[-8:].tolist(),
         },
         "regularisation": {
-            "criterion": "GCV",
+            "criterion": {"ml": "marginal likelihood", "gcv": "GCV",
+                          "fixed": "given"}[fit.weight.criterion],
             "lambda": fit.lam,
-            "effective_parameters": float(np.sum(mu)),
+            "lambda_at_search_bound": bool(fit.weight.at_bound),
+            "effective_parameters": float(np.trace(R_all)),
+            "effective_rail_parameters": float(np.sum(mu)),
             "unknowns": int(Z.shape[1]),
             "data_determined_directions": int(np.sum(mu >= threshold)),
             "prior_determined_directions": int(np.sum(mu < threshold)),

@@ -1,0 +1,219 @@
+r"""The machine's structure as unknowns of the fit: the table's stiffness and the preload.
+
+Nobody knows the equivalent plate thickness of a cast, ribbed table or the real preload of a
+worn carriage, and both change what a rail error does to the measured pitch, yaw and roll. The
+fit therefore estimates them together with the rails, through the same model, with a prior the
+user states (a value and a range).
+
+Two structural unknowns, both dimensionless and on a log scale:
+
+- ``log_thickness`` ``= ln(t / t₀)``: the equivalent plate thickness ``t`` of the table (bending
+  stiffness ∝ t³, membrane and shear stiffness and weight ∝ t);
+- ``log_preload`` ``= ln(F / F₀)``: the preload force per rolling element ``F`` (a preload
+  fraction of C times the same factor).
+
+The preload enters the carriage directly (``Carriage.preload_force`` is a number of the model).
+The table is condensed once per thickness at :data:`N_NODES` Chebyshev nodes of ``ln t`` over
+the prior range (widened by :data:`MARGIN` on each side), and every array of the condensed table
+is interpolated between them by the Lagrange polynomial in ``ln t``:
+
+.. math::  T(u) = \sum_j T(u_j)\,\prod_{k≠j}\frac{u-u_k}{u_j-u_k},\qquad u = \ln t,
+
+smooth and exactly differentiable, accurate to ~1e-6 relative over a factor-4 thickness range
+(tested against a direct condensation between the nodes). Outside the nodes' range the thickness
+is held at the bound (the fit reports that).
+
+Prior: ``ln t ~ N(ln t_value, σ_t²)`` with the stated range read as ±2σ about the value (the
+larger side), likewise for the preload. The posterior σ of each parameter is compared with its
+prior σ: a parameter whose σ the data shrink by less than :data:`DETERMINED_RATIO` is reported as
+*not determined by the data* (its value is the prior's, and its uncertainty is carried into the
+rails' bands).
+"""
+
+import dataclasses
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+#: Interpolation nodes in ln(thickness).
+N_NODES = 9
+#: The nodes span the prior range widened by this factor on each side (in t).
+MARGIN = 1.15
+#: A parameter counts as determined by the data when its posterior σ is below this fraction of
+#: its prior σ.
+DETERMINED_RATIO = 0.7
+
+NAMES = ("thickness", "preload")
+
+
+@dataclasses.dataclass(frozen=True)
+class Prior:
+    """A structural parameter's prior: ``value`` and a plausible ``(lo, hi)`` range (same unit;
+    thickness in m, preload as a fraction of C), read as ±2σ of a normal prior in the log."""
+
+    value: float
+    lo: float
+    hi: float
+
+    def __post_init__(self):
+        if not (0 < self.lo <= self.value <= self.hi):
+            raise ValueError(
+                f"a prior needs 0 < lo <= value <= hi, got value {self.value!r}, range "
+                f"({self.lo!r}, {self.hi!r})"
+            )
+
+    @property
+    def sigma_log(self) -> float:
+        """σ of ``ln(parameter)`` (the larger half-range over 2); at least 1e-3."""
+        half = max(np.log(self.hi / self.value), np.log(self.value / self.lo))
+        return max(half / 2.0, 1e-3)
+
+
+@dataclasses.dataclass(frozen=True)
+class StructurePriors:
+    """Priors of the structural unknowns; ``None`` holds a parameter fixed at the machine's value.
+
+    Attributes:
+        thickness: equivalent plate thickness (m).
+        preload: preload as a fraction of the carriage's dynamic capacity C (or of the machine's
+            own preload when the machine was given directly: ``value`` is then the machine's
+            fraction and only the ratios matter).
+    """
+
+    thickness: Prior | None = None
+    preload: Prior | None = None
+
+    def active(self) -> tuple[str, ...]:
+        return tuple(n for n in NAMES if getattr(self, n) is not None)
+
+
+def _cheb_nodes(lo: float, hi: float, n: int) -> np.ndarray:
+    k = np.arange(n)
+    return 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos(np.pi * (2 * k + 1) / (2 * n))[::-1]
+
+
+def lagrange_weights(u, nodes: np.ndarray):
+    """Lagrange basis polynomials at ``u`` for ``nodes`` (products: smooth through the nodes)."""
+    nodes = np.asarray(nodes, dtype=float)
+    n = nodes.shape[0]
+    w = []
+    for j in range(n):
+        others = np.delete(nodes, j)
+        w.append(jnp.prod(u - jnp.asarray(others)) / float(np.prod(nodes[j] - others)))
+    return jnp.stack(w)
+
+
+class MachineFamily(eqx.Module):
+    """A machine whose table thickness and preload are parameters (see the module docstring).
+
+    Build with :meth:`build`; evaluate with :meth:`machine`.
+
+    Attributes:
+        base: the machine at the prior values (its static structure: points, carriages, rails).
+        tables: the condensed table at every node, array leaves stacked on a leading axis.
+        nodes: the nodes ``ln t`` (static).
+        thickness0: the base machine's thickness (m). preload0: its preload fraction.
+        priors: the priors (static).
+    """
+
+    base: eqx.Module
+    tables: eqx.Module | None
+    nodes: tuple[float, ...] = eqx.field(static=True)
+    thickness0: float = eqx.field(static=True)
+    preload0: float = eqx.field(static=True)
+    priors: StructurePriors = eqx.field(static=True)
+
+    @classmethod
+    def build(
+        cls,
+        make_machine: Callable[..., eqx.Module],
+        priors: StructurePriors,
+        *,
+        progress: Callable[[str], None] | None = None,
+    ) -> "MachineFamily":
+        """Condense the table at the interpolation nodes.
+
+        Arguments:
+            make_machine: ``make_machine(thickness=t, preload_fraction=p)`` →
+                :class:`~diffguide.machine.Machine` (``t`` in m, ``p`` a fraction of C; each
+                keyword is passed only when that parameter has a prior; everything else at its
+                configured value).
+            priors: which parameters are unknown, with their priors.
+            progress: called with a line of text per condensation (optional).
+        """
+        t0 = priors.thickness.value if priors.thickness is not None else None
+        kw = {}
+        if priors.preload is not None:
+            kw["preload_fraction"] = priors.preload.value
+        base = make_machine(**kw, **({} if t0 is None else {"thickness": t0}))
+        preload0 = priors.preload.value if priors.preload is not None else 1.0
+        if priors.thickness is None:
+            return cls(base, None, (), 0.0, preload0, priors)
+        p = priors.thickness
+        lo, hi = np.log(p.lo / MARGIN), np.log(p.hi * MARGIN)
+        nodes = _cheb_nodes(lo, hi, N_NODES)
+        tables = []
+        for k, u in enumerate(nodes):
+            if progress is not None:
+                progress(f"condensing the table at thickness {np.exp(u) * 1e3:.1f} mm "
+                         f"({k + 1}/{len(nodes)})")
+            tables.append(make_machine(thickness=float(np.exp(u)), **kw).table)
+        dyn = [eqx.partition(t, eqx.is_array)[0] for t in tables]
+        stacked = jax.tree.map(lambda *xs: jnp.stack(xs), *dyn)
+        return cls(base, stacked, tuple(float(u) for u in nodes), float(t0), preload0, priors)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.priors.active()
+
+    @property
+    def n_params(self) -> int:
+        return len(self.names)
+
+    def prior_sigma(self) -> np.ndarray:
+        return np.array([getattr(self.priors, n).sigma_log for n in self.names])
+
+    def prior_mean(self) -> np.ndarray:
+        """Prior mean of each unknown (log of value over the base machine's value): 0."""
+        return np.zeros(self.n_params)
+
+    def bounds(self) -> np.ndarray:
+        """``(n_params, 2)`` bounds of the unknowns (the thickness nodes' range; preload ±3)."""
+        out = []
+        for n in self.names:
+            if n == "thickness":
+                out.append((self.nodes[0] - np.log(self.thickness0),
+                            self.nodes[-1] - np.log(self.thickness0)))
+            else:
+                out.append((-3.0, 3.0))
+        return np.array(out)
+
+    def machine(self, params):
+        """The machine at ``params`` (the unknowns in the order of :attr:`names`; may be traced)."""
+        m = self.base
+        params = jnp.asarray(params, dtype=float)
+        for i, n in enumerate(self.names):
+            if n == "thickness":
+                u = jnp.clip(params[i] + np.log(self.thickness0), self.nodes[0], self.nodes[-1])
+                w = lagrange_weights(u, np.asarray(self.nodes))
+                arrays = jax.tree.map(lambda L: jnp.tensordot(w, L, axes=1), self.tables)
+                static = eqx.partition(m.table, eqx.is_array)[1]
+                m = eqx.tree_at(lambda mm: mm.table, m, eqx.combine(arrays, static))
+            else:
+                f0 = m.carriage.preload_force
+                m = eqx.tree_at(lambda mm: mm.carriage.preload_force, m,
+                                f0 * jnp.exp(params[i]))
+        return m
+
+    def values(self, params) -> dict[str, float]:
+        """The physical value of each unknown (thickness in m, preload as a fraction)."""
+        out = {}
+        for i, n in enumerate(self.names):
+            if n == "thickness":
+                out[n] = float(self.thickness0 * np.exp(params[i]))
+            else:
+                out[n] = float(self.preload0 * np.exp(params[i]))
+        return out
