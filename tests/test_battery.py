@@ -1,0 +1,171 @@
+"""The identification battery (issue 11, part 4): hidden-style cases, each with a truth made by a
+different model than the fit uses (tests/battery). Per case: the fit returns a result; the truth
+lies inside ±2σ at >= 85 % of the profile points and >= 70 % for every profile (gauge removed,
+10 % trimmed at each end); on the wrong-structure cases every profile is within 15 % RMS of the
+truth.
+
+Each case is simulated and fitted once per session (tests/battery/cases.result); the truth
+machines are built once each. The battery's own machinery is checked against closed forms first.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from battery import cases
+from battery.cases import CASES, result
+from battery.score import TRIM, score_profiles
+
+from diffguide.inverse import RailBasis, blind_wavelengths
+from diffguide.measurements import QUANTITIES
+
+WRONG_STRUCTURE = [name for name, make in CASES.items() if make().wrong_structure]
+
+#: Cases that fail today, per test: the reason quotes the numbers measured before the
+#: structure-as-unknowns fit (bench/battery_table.py). The lead removes these marks.
+XFAIL: dict[tuple[str, str], str] = {}
+
+
+def _params(test: str, names) -> list:
+    return [
+        pytest.param(n, marks=pytest.mark.xfail(strict=False, reason=XFAIL[(test, n)]))
+        if (test, n) in XFAIL
+        else n
+        for n in names
+    ]
+
+
+# ------------------------------------------------------------------ the battery's machinery
+
+
+class _FakeFit:
+    """The attributes the scorer reads, with chosen profiles and σ."""
+
+    def __init__(self, basis, fix_slope, values, sigma):
+        self.basis, self.fix_slope = basis, fix_slope
+        self._values, self._sigma = values, sigma
+
+    def profiles(self, s):
+        return self._values(s), self._sigma(s)
+
+
+def test_score_closed_forms():
+    """Gauge modes are not errors; a cosine error of k whole periods over the scored range has
+    RMS a/√2, and |cos| ≤ 1/√2 holds on half of each period."""
+    basis = RailBasis.covering(-0.53, 0.53, 0.048)
+    s = np.linspace(basis.start, basis.end, 401)
+    L = basis.end - basis.start
+    truth = cases.truth_profiles(cases.baseline(), s)
+    # offsets of every profile and a common slope per plane: invisible
+    gauge = np.array([1.0, -2.0, 3.0, 0.5])[:, None] * 1e-6 + np.zeros((4, len(s)))
+    gauge += np.array([1.0, 3.0, 1.0, 3.0])[:, None] * 1e-6 * (s - s.mean())
+    sc = score_profiles(
+        basis,
+        (True, True),
+        truth + gauge.reshape(2, 2, -1),
+        np.full((2, 2, len(s)), 1e-12),
+        truth,
+        s,
+    )
+    np.testing.assert_allclose(sc.rms_um, 0.0, atol=1e-9)
+    assert sc.overall_coverage == 1.0
+    # 5 periods over the range: 4 whole periods over the scored 80 %; symmetric about the
+    # centre (no slope), mean a/401 from the endpoint (the closed forms hold to ~1 %)
+    a = 1e-6
+    e = a * np.cos(2 * np.pi * 5 * (s - basis.start) / L)
+    err = np.zeros((2, 2, len(s)))
+    err[0, 1] = e
+    sc = score_profiles(
+        basis, (True, True), truth + err, np.full((2, 2, len(s)), a / np.sqrt(8)), truth, s
+    )
+    np.testing.assert_allclose(sc.rms_um[0, 1], 1e6 * a / np.sqrt(2), rtol=0.01)
+    np.testing.assert_allclose(sc.rms_um[1], 0.0, atol=1e-6)
+    assert abs(sc.coverage[0, 1] - 0.5) < 0.02
+    assert np.all(sc.coverage[1] == 1.0)
+    assert np.isclose(sc.s[0] - basis.start, TRIM * L, atol=L / 400)
+
+
+def test_readings_round_trip_through_the_input_path():
+    """Noise-free readings written as CSV text come back from parse + merge as the errors they
+    were made from (SI), one merged row per position, point and quantity, 10 readings each."""
+    case = cases.with_straightness()
+    rng = np.random.default_rng(1)
+    n_pos, n_pt = case.n_positions, len(case.sensors)
+    errors = rng.normal(0.0, 5.0, (n_pos, n_pt, 6))  # µm, µm/m
+    meas = cases.measurements(case, errors, noise=False)
+    assert meas.point_names == tuple(case.points())
+    assert meas.n == n_pos * sum(len(q) for *_, q in case.sensors)
+    pos = case.positions_mm() * 1e-3
+    i = np.searchsorted(pos, meas.position - 1e-9)
+    np.testing.assert_allclose(pos[i], meas.position, atol=1e-9)
+    expected = errors[i, meas.point, meas.quantity] * 1e-6
+    np.testing.assert_allclose(meas.value, expected, atol=1e-11)
+    assert np.all(meas.n_readings == 2 * case.runs)
+    straight = meas.quantity == QUANTITIES.index("EZX")
+    assert straight.sum() == n_pos and set(meas.instrument) == {"level", "interferometer"}
+
+
+def test_noise_levels_and_outliers():
+    """The pooled repeatability of the noisy readings is the stated noise per instrument
+    (4 µm/m level, 2 µm/m interferometer, 1 µm straightness) within its sampling error, and
+    exactly ``outliers`` readings sit beyond 8 σ of the noise-free values."""
+    case = dataclasses.replace(cases.with_straightness(), outliers=5, seed=7)
+    errors = np.zeros((case.n_positions, len(case.sensors), 6))
+    meas = cases.measurements(dataclasses.replace(case, outliers=0), errors)
+    assert set(meas.sigma_source) == {"scatter"}
+    for q, inst, sig in (
+        ("EBX", "level", 4.0),
+        ("EBX", "interferometer", 2.0),
+        ("EZX", "interferometer", 1.0),
+    ):
+        sel = (meas.quantity == QUANTITIES.index(q)) & (np.array(meas.instrument) == inst)
+        # merged σ = σ_reading / √10; the pooled estimate has ~288 degrees of freedom
+        got = np.median(meas.sigma[sel]) * np.sqrt(2 * case.runs) * 1e6
+        assert abs(got / sig - 1) < 0.15, (q, inst, got)
+    noisy = cases.readings_csv(case, errors).splitlines()[2:]
+    off = 0
+    for line in noisy:
+        f = line.split(",")
+        sig = cases.NOISE[(f[9], "linear" if f[4] in cases.LINEAR else "angular")]
+        off += abs(float(f[5])) > 8 * sig
+    assert off == case.outliers
+
+
+def test_blind_wavelengths_are_the_presets():
+    """The blind-wavelength case puts its content where the preset's rigid-table formulae say."""
+    machine = cases.fit_machine(cases.baseline().points())
+    bw = blind_wavelengths(machine, 1.0)
+    expected = [
+        bw["carriage_averaging_m"][0],
+        bw["carriage_spacing_m"],
+        bw["roll_difference_m"][0],
+        bw["roll_difference_m"][1],
+    ]
+    np.testing.assert_allclose(cases.BLIND_WAVELENGTHS, expected, rtol=1e-9)
+    assert bw["carriage_spacing_m"] in bw["pitch_yaw_mean_m"]
+
+
+# ------------------------------------------------------------------ the battery
+
+
+@pytest.mark.parametrize("name", _params("fit", CASES))
+def test_case_returns_a_fit(name):
+    res = result(name)
+    assert res.error is None, res.error
+    assert np.all(np.isfinite(res.score.rms_um)) and np.isfinite(res.fit.chi2_dof)
+
+
+@pytest.mark.parametrize("name", _params("coverage", CASES))
+def test_truth_inside_2_sigma(name):
+    res = result(name)
+    assert res.fit is not None, res.error
+    sc = res.score
+    assert sc.overall_coverage >= 0.85, sc.coverage
+    assert sc.worst_coverage >= 0.70, sc.coverage
+
+
+@pytest.mark.parametrize("name", _params("error", WRONG_STRUCTURE))
+def test_wrong_structure_profiles_within_15_percent(name):
+    res = result(name)
+    assert res.fit is not None, res.error
+    assert res.score.worst_rel <= 0.15, res.score.rel
