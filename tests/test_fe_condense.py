@@ -1,4 +1,5 @@
-"""Condensation onto rigid patches against an independent full solve; gradients vs FD."""
+"""Condensation onto rigid patches against an independent full solve; the block-tridiagonal
+(default) path against the dense one; gradients of the default path vs finite differences."""
 
 import equinox as eqx
 import jax
@@ -11,11 +12,13 @@ from diffguide.fe import (
     Rib,
     RigidPatch,
     assemble,
+    banded,
     condense,
     majda2012_table,
     solve_fixed,
     table_mesh,
 )
+from diffguide.fe.banded import block_layout
 from diffguide.fe.materials import Material
 
 
@@ -93,8 +96,12 @@ def test_point_between_nodes_is_bilinear_interpolation():
     u = np.asarray(c.node_u0)
     t = float(tm.plate.thickness)
     acc = np.zeros(6)
-    for (di, dj), w in {(0, 0): (1 - sx) * (1 - sy), (1, 0): sx * (1 - sy), (1, 1): sx * sy,
-                        (0, 1): (1 - sx) * sy}.items():
+    for (di, dj), w in {
+        (0, 0): (1 - sx) * (1 - sy),
+        (1, 0): sx * (1 - sy),
+        (1, 1): sx * sy,
+        (0, 1): (1 - sx) * sy,
+    }.items():
         uk = u[tm.mesh.node_at(xs[i + di], ys[j + dj])]
         acc += w * np.r_[uk[:3] + np.cross(uk[3:], [0, 0, t / 2]), uk[3:]]
     assert np.allclose(np.asarray(c.r0), acc, rtol=1e-12, atol=1e-12 * np.abs(acc).max())
@@ -132,7 +139,7 @@ def _uz_p1(tm, thickness=None, E=None, depth=None, nodes=None):
     mesh = tm.mesh
     if depth is not None:
         mesh = eqx.tree_at(lambda m: m.ribs[0].depth, mesh, depth)
-    c = condense(mesh, plate, tm.patches, tm.points, nodes=nodes, gravity=9.81)
+    c = condense(mesh, plate, tm.patches, tm.points, nodes=nodes, gravity=9.81, method="banded")
     # a deflection with both parts: gravity sag plus the response to a carriage lift
     u_b = jnp.zeros(c.K.shape[0]).at[2].set(1e-6)
     return c.point_motion(u_b)[0, 2]
@@ -163,6 +170,50 @@ def test_gradient_wrt_node_coordinates(small):
     assert float(jv) == pytest.approx(float(fd), rel=1e-6)
 
 
+_FIELDS = ("K", "f", "R", "r0", "node_modes", "node_u0")
+
+
+@pytest.mark.parametrize("ribbed", [False, True])
+def test_banded_equals_dense(ribbed):
+    """Block-tridiagonal condensation = dense Cholesky of the assembled reduced matrix."""
+    ribs = [Rib("x", 0.0, 0.03, 0.05, start=-0.3, stop=0.3), Rib("y", 0.1, 0.02, 0.04)]
+    tm = majda2012_table(10, 5, ribs=ribs) if ribbed else majda2012_table()
+    a, b = tm.condense(method="banded"), tm.condense(method="dense")
+    for name in _FIELDS:
+        assert _rel(getattr(a, name), getattr(b, name)) < 1e-10, name
+
+
+def test_banded_blocks_across_the_shorter_side():
+    """A mesh wider than long is blocked along Y (blocks = grid lines y = const)."""
+    mesh = table_mesh(0.4, 0.9, 4, 9, lines_y=[-0.07, -0.03, 0.03, 0.07])
+    plate = PlateSection(0.04)
+    patches = [RigidPatch(0.0, y, 0.1, 0.03) for y in (-0.25, 0.25)]
+    lay = block_layout(len(mesh.xs), len(mesh.ys), np.full(mesh.n_nodes, -1), 2)
+    assert (lay.n_blocks, lay.block_size) == (len(mesh.ys), 6 * len(mesh.xs))
+    pts = [(0.1, 0.05), (-0.13, -0.31)]
+    a = condense(mesh, plate, patches, pts, method="banded")
+    b = condense(mesh, plate, patches, pts, method="dense")
+    for name in _FIELDS:
+        assert _rel(getattr(a, name), getattr(b, name)) < 1e-10, name
+
+
+def test_block_tridiagonal_solve_against_numpy():
+    """banded.cholesky / cho_solve / matvec on a random SPD block-tridiagonal matrix."""
+    rng = np.random.default_rng(3)
+    nb, s, k = 5, 4, 3
+    M = rng.normal(size=(nb * s, nb * s))
+    band = np.abs(np.subtract.outer(np.arange(nb * s) // s, np.arange(nb * s) // s)) <= 1
+    K = M @ M.T * band + nb * s * np.eye(nb * s)  # SPD (diagonally dominant), block band
+    D = np.stack([K[i * s : (i + 1) * s, i * s : (i + 1) * s] for i in range(nb)])
+    C = np.stack([K[(i + 1) * s : (i + 2) * s, i * s : (i + 1) * s] for i in range(nb - 1)])
+    B = rng.normal(size=(nb, s, k))
+    X = banded.cho_solve(banded.cholesky(jnp.asarray(D), jnp.asarray(C)), jnp.asarray(B))
+    X_ref = np.linalg.solve(K, B.reshape(-1, k)).reshape(nb, s, k)
+    assert _rel(X, X_ref) < 1e-12
+    assert _rel(banded.matvec(jnp.asarray(D), jnp.asarray(C), X), B) < 1e-12
+    assert _rel(banded.spd_solve(jnp.asarray(D), jnp.asarray(C), jnp.asarray(B)), X_ref) < 1e-12
+
+
 def test_invalid_input():
     with pytest.raises(ValueError, match="thickness"):
         PlateSection(thickness=-0.01)
@@ -182,5 +233,7 @@ def test_invalid_input():
         condense(mesh, plate, [RigidPatch(0.0, 0.0, 0.1, 0.1), RigidPatch(0.1, 0.0, 0.1, 0.1)])
     with pytest.raises(ValueError, match="outside the table"):
         condense(mesh, plate, [RigidPatch(0.0, 0.0, 0.1, 0.1)], [(0.7, 0.0)])
+    with pytest.raises(ValueError, match="method"):
+        condense(mesh, plate, [RigidPatch(0.0, 0.0, 0.1, 0.1)], method="sparse")
     with pytest.raises(ValueError, match="half_x"):
         RigidPatch(0.0, 0.0, 0.0, 0.1)

@@ -36,6 +36,7 @@ import numpy as np
 
 from .._precision import require_x64
 from .._types import Array, Float, ScalarLike
+from . import banded
 from .assemble import PlateSection, _element_arrays, as_arrays
 from .mesh import TableMesh
 from .shell import shell_frame, shell_natural_coords, shell_shape
@@ -191,8 +192,9 @@ def condense(
     ref_xy: Float[Array, "p 2"] | None = None,
     gravity: ScalarLike = 9.81,
     surface_load: Float[Array, "3"] | None = None,
+    method: str = "banded",
 ) -> CondensedTable:
-    """Condense the table onto rigid patches and recover control points (dense Cholesky).
+    """Condense the table onto rigid patches and recover control points.
 
     Args:
         mesh: table mesh; footprints and points must lie on the table.
@@ -206,6 +208,11 @@ def condense(
             heights still follow ``RigidPatch.z`` / the plate underside.
         gravity: g (m/s²) along -Z; 0 for no self-weight.
         surface_load: uniform load on the plate (Pa, global components).
+        method: ``"banded"`` (default): element matrices scattered straight into the
+            block-tridiagonal interior block (one block per grid line across the shorter side),
+            block Cholesky by ``lax.scan`` (:mod:`diffguide.fe.banded`); ``O(n_b s³)`` time and
+            ``O(n_b s²)`` memory for ``n_b`` blocks of ``s`` DOF. ``"dense"``: the reduced
+            matrix assembled dense and a dense Cholesky, ``O(n³)`` (a reference).
 
     Returns:
         :class:`CondensedTable`. Differentiable w.r.t. thickness, material, rib sizes, ``nodes``,
@@ -221,13 +228,49 @@ def condense(
             f"ref_xy must have shape (n_patches, 2) = ({len(patches)}, 2), got {np.shape(ref_xy)}"
         )
     pts = np.array(points, dtype=float).reshape(-1, 2)
+    if method == "dense":
+        layout = index = None
+    elif method == "banded":
+        layout = banded.block_layout(len(mesh.xs), len(mesh.ys), owner, len(patches))
+        conns = [mesh.quads] + ([mesh.beams] if mesh.beams.shape[0] > 0 else [])
+        index = [(layout.matrix_index(c), layout.vector_index(c)) for c in conns]
+    else:
+        raise ValueError(f"method must be 'banded' or 'dense', got {method!r}")
     return _condense(
-        mesh, plate, nodes, ref_xy, gravity, sl, owner, block, n_free, quads, pxyz, pts
+        mesh,
+        plate,
+        nodes,
+        ref_xy,
+        gravity,
+        sl,
+        owner,
+        block,
+        n_free,
+        quads,
+        pxyz,
+        pts,
+        layout,
+        index,
     )
 
 
 @eqx.filter_jit
-def _condense(mesh, plate, nodes, ref_xy, gravity, sl, owner, block, n_free, quads, pxyz, pts):
+def _condense(
+    mesh,
+    plate,
+    nodes,
+    ref_xy,
+    gravity,
+    sl,
+    owner,
+    block,
+    n_free,
+    quads,
+    pxyz,
+    pts,
+    layout=None,
+    index=None,
+):
     xyz = jnp.asarray(mesh.nodes if nodes is None else nodes, dtype=float)
     t = jnp.asarray(plate.thickness, dtype=float)
     n_patch = pxyz.shape[0]
@@ -241,31 +284,42 @@ def _condense(mesh, plate, nodes, ref_xy, gravity, sl, owner, block, n_free, qua
     d = xyz - ref[jnp.where(slave, owner, 0)]
     A = jnp.where(slave[:, None, None], _rigid(d), jnp.eye(6))  # node DOF = A @ block DOF
 
-    K = jnp.zeros((n_r, n_r))
-    f = jnp.zeros(n_r)
+    parts = []
     for ea in _element_arrays(mesh, plate, nodes, gravity, sl):
         k = ea.conn.shape[1]
         Ae = A[ea.conn]  # (n_el, k, 6, 6)
         Ke = ea.K.reshape(-1, k, 6, k, 6)
         Ke = jnp.einsum("eiac,eiajb,ejbd->eicjd", Ae, Ke, Ae).reshape(-1, 6 * k, 6 * k)
         fe = jnp.einsum("eiac,eia->eic", Ae, ea.f.reshape(-1, k, 6)).reshape(-1, 6 * k)
-        dofs = (6 * block[ea.conn][:, :, None] + jnp.arange(6)).reshape(-1, 6 * k)
-        K = K.at[dofs[:, :, None], dofs[:, None, :]].add(Ke)
-        f = f.at[dofs].add(fe)
+        parts.append((ea.conn, Ke, fe))
 
-    Kii, Kib, Kbb = K[:n_i, :n_i], K[:n_i, n_i:], K[n_i:, n_i:]
-    X = _spd_solve(Kii, jnp.concatenate([Kib, f[:n_i, None]], axis=1))
-    Kc = Kbb - Kib.T @ X[:, :m]
+    if layout is None:  # dense: interior nodes in node order, then the interface DOF
+        K = jnp.zeros((n_r, n_r))
+        f = jnp.zeros(n_r)
+        for conn, Ke, fe in parts:
+            dofs = (6 * block[conn][:, :, None] + jnp.arange(6)).reshape(conn.shape[0], -1)
+            K = K.at[dofs[:, :, None], dofs[:, None, :]].add(Ke)
+            f = f.at[dofs].add(fe)
+        Kii, Kib, Kbb = K[:n_i, :n_i], K[:n_i, n_i:], K[n_i:, n_i:]
+        X = _spd_solve(Kii, jnp.concatenate([Kib, f[:n_i, None]], axis=1))
+        Kc = Kbb - Kib.T @ X[:, :m]
+        fc = f[n_i:] - Kib.T @ X[:, m]
+        Xn = X.reshape(-1, 6, m + 1)[block]  # interior rows per node (slave rows: garbage)
+    else:  # block-tridiagonal interior (all nodes, slave DOF decoupled), see .banded
+        D, C, Kib, Kbb, fi, fb = banded.assemble_blocks(
+            layout, [(Ke, fe, mi, vi) for (_, Ke, fe), (mi, vi) in zip(parts, index)]
+        )
+        X = banded.spd_solve(D, C, jnp.concatenate([Kib, fi[:, :, None]], axis=2))
+        Kc = Kbb - jnp.einsum("nim,nik->mk", Kib, X[:, :, :m])
+        fc = fb - jnp.einsum("nim,ni->m", Kib, X[:, :, m])
+        Xn = X.reshape(-1, 6, m + 1)[layout.node_index()]
     Kc = 0.5 * (Kc + Kc.T)
-    fc = f[n_i:] - Kib.T @ X[:, m]
 
-    # generalized DOF per interface DOF: interior -X, interface identity
-    Q = jnp.concatenate([-X[:, :m], jnp.eye(m)], axis=0)  # (n_r, m)
-    q0 = jnp.concatenate([X[:, m], jnp.zeros(m)])
-    Qb = Q.reshape(-1, 6, m)[block]  # (n_nodes, 6, m)
-    q0b = q0.reshape(-1, 6)[block]
-    node_modes = jnp.einsum("nab,nbm->nam", A, Qb)
-    node_u0 = jnp.einsum("nab,nb->na", A, q0b)
+    # node DOF per interface DOF: interior nodes -X, slave nodes the rigid map of their patch
+    onehot = jnp.asarray(owner[:, None] == np.arange(n_patch), dtype=A.dtype)  # (n, p)
+    tied = jnp.einsum("np,nab->napb", onehot, A).reshape(-1, 6, m)
+    node_modes = jnp.where(slave[:, None, None], tied, -Xn[:, :, :m])
+    node_u0 = jnp.where(slave[:, None], 0.0, Xn[:, :, m])
 
     # control points: bilinear interpolation in the containing quad + offset to the top surface
     qn = jnp.asarray(mesh.quads)[quads]  # (n_pts, 4)
@@ -284,6 +338,5 @@ def _condense(mesh, plate, nodes, ref_xy, gravity, sl, owner, block, n_free, qua
     else:
         Rm, r0 = jnp.zeros((0, m)), jnp.zeros(0)
     return CondensedTable(
-        K=Kc, f=fc, R=Rm, r0=r0, node_modes=node_modes, node_u0=node_u0, ref_points=ref,
-        nodes=xyz
+        K=Kc, f=fc, R=Rm, r0=r0, node_modes=node_modes, node_u0=node_u0, ref_points=ref, nodes=xyz
     )

@@ -1,0 +1,235 @@
+r"""Block-tridiagonal SPD matrices of a structured mesh: layout, assembly, Cholesky, solve.
+
+On a tensor grid every element joins nodes of two neighbouring grid lines at most. Numbering the
+nodes line by line across the *shorter* side (one block per grid line of the longer side, ``nper``
+nodes = ``6 nper`` DOF per block), the stiffness matrix is block-tridiagonal:
+
+.. math::
+
+    K = \begin{bmatrix} D_0 & C_0^T & & \\ C_0 & D_1 & C_1^T & \\ & C_1 & D_2 & \ddots \\
+        & & \ddots & \ddots \end{bmatrix},
+    \qquad D_i = D_i^T,\; C_i = K_{i+1,i}.
+
+Its Cholesky factor is block-bidiagonal (no fill outside the band):
+
+.. math::
+
+    L_0 L_0^T = D_0, \qquad W_i = C_{i-1} L_{i-1}^{-T}, \qquad
+    L_i L_i^T = D_i - W_i W_i^T \quad (i \ge 1),
+
+and ``K X = B`` is solved by ``y_i = L_i^{-1}(B_i - W_i y_{i-1})`` forwards, then
+``x_i = L_i^{-T}(y_i - W_{i+1}^T x_{i+1})`` backwards. Cost: ``n_b`` block Cholesky factors and
+``≈ 3 n_b s³`` flops for ``n_b`` blocks of size ``s`` (a dense Cholesky costs ``(n_b s)³ / 3``),
+memory ``2 n_b s²`` instead of ``(n_b s)²``. Both loops are a ``lax.scan`` over the blocks.
+
+:func:`spd_solve` differentiates the solve as a linear solve (``lax.custom_linear_solve``): a
+tangent or cotangent costs one more pair of sweeps, ``dX = K⁻¹(dB − dK X)``, with ``dK`` from the
+block matrix–vector product, never from the derivative of the factorisation.
+
+Rigid patches. :func:`block_layout` takes the interface map of
+:mod:`diffguide.fe.condense`: nodes tied to a patch leave the interior block (their rows and
+columns of ``D`` are replaced by the identity and decoupled, which leaves the other unknowns
+exact and gives zero there), and the element entries that touch them go to the interior–interface
+coupling ``K_ib`` (per block, ``(n_b, s, m)``) and to ``K_bb`` (``(m, m)``). Element matrices are
+scattered straight into these arrays; the dense global matrix is never formed.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._types import Array, Float
+
+
+class BlockLayout(eqx.Module):
+    """Static map from node DOF to the block-tridiagonal interior and the interface DOF.
+
+    Build with :func:`block_layout`. NumPy index arrays (traced when passed through
+    ``filter_jit``) and static sizes.
+
+    Attributes:
+        node_block, node_pos: (n_nodes,) block of each node and its position inside the block.
+        owner: (n_nodes,) interface patch of each node, -1 for an interior node.
+        slave_dof: (n_b, s) bool, DOF tied to a patch (identity rows of ``D``).
+        n_blocks, block_size: number of blocks ``n_b`` and their size ``s = 6 nper`` (DOF).
+        m: number of interface DOF.
+        offsets, n_entries: offsets of ``D``, ``C``, ``K_ib``, ``K_bb`` in the flat storage and
+            its total size.
+    """
+
+    node_block: np.ndarray
+    node_pos: np.ndarray
+    owner: np.ndarray
+    slave_dof: np.ndarray
+    n_blocks: int = eqx.field(static=True)
+    block_size: int = eqx.field(static=True)
+    m: int = eqx.field(static=True)
+    offsets: tuple[int, int, int, int] = eqx.field(static=True)
+    n_entries: int = eqx.field(static=True)
+
+    @property
+    def index_dtype(self):
+        return np.int32 if self.n_entries < 2**31 - 1 else np.int64
+
+    def _dofs(self, conn: np.ndarray):
+        """Per element DOF (n_el, 6k): slave flag, block, in-block index, interface index."""
+        conn = np.asarray(conn)
+        node = np.repeat(conn, 6, axis=1)
+        d = np.tile(np.arange(6), conn.shape[1])
+        own = self.owner[node]
+        blk = self.node_block[node]
+        if np.any(np.abs(np.diff(blk[:, ::6], axis=1)) > 1):
+            raise ValueError("an element joins nodes more than one block apart: not a tensor grid")
+        return own >= 0, blk, 6 * self.node_pos[node] + d, 6 * np.maximum(own, 0) + d
+
+    def matrix_index(self, conn: np.ndarray) -> np.ndarray:
+        """Flat target (n_el, 6k, 6k) of each element-matrix entry in ``[D, C, K_ib, K_bb]``
+        (raveled, concatenated); ``n_entries`` (dropped) for the entries the symmetric storage
+        does not keep (upper block ``C^T`` and interface–interior ``K_bi``)."""
+        sl, blk, loc, bi = self._dofs(conn)
+        s, m = self.block_size, self.m
+        oD, oC, oB, oBB = self.offsets
+        r = lambda a: a[:, :, None]
+        c = lambda a: a[:, None, :]
+        ii = ~r(sl) & ~c(sl)
+        idx = np.full((conn.shape[0], sl.shape[1], sl.shape[1]), self.n_entries, np.int64)
+        idx = np.where(ii & (r(blk) == c(blk)), oD + (r(blk) * s + r(loc)) * s + c(loc), idx)
+        idx = np.where(ii & (r(blk) == c(blk) + 1), oC + (c(blk) * s + r(loc)) * s + c(loc), idx)
+        idx = np.where(~r(sl) & c(sl), oB + (r(blk) * s + r(loc)) * m + c(bi), idx)
+        idx = np.where(r(sl) & c(sl), oBB + r(bi) * m + c(bi), idx)
+        return idx.astype(self.index_dtype)
+
+    def vector_index(self, conn: np.ndarray) -> np.ndarray:
+        """Flat target (n_el, 6k) of each element-vector entry in ``[f_i (n_b s), f_b (m)]``."""
+        sl, blk, loc, bi = self._dofs(conn)
+        s = self.block_size
+        return np.where(sl, self.n_blocks * s + bi, blk * s + loc).astype(self.index_dtype)
+
+    def node_index(self) -> np.ndarray:
+        """(n_nodes,) row of each node in the interior solution reshaped (n_b · nper, 6, ·)."""
+        return self.node_block * (self.block_size // 6) + self.node_pos
+
+
+def block_layout(n_lines_x: int, n_lines_y: int, owner: np.ndarray, n_patches: int) -> BlockLayout:
+    """The :class:`BlockLayout` of a tensor grid with rigid patches.
+
+    Args:
+        n_lines_x, n_lines_y: number of grid lines along X and Y; node ``i * n_lines_y + j`` sits
+            on lines ``xs[i]``, ``ys[j]`` (:class:`~diffguide.fe.mesh.TableMesh` numbering).
+            Blocks run across the shorter side (one block per grid line of the longer side).
+        owner: (n_nodes,) interface patch of each node, -1 for an interior node.
+        n_patches: number of patches (interface DOF ``m = 6 n_patches``).
+    """
+    i, j = np.divmod(np.arange(n_lines_x * n_lines_y), n_lines_y)
+    if n_lines_x >= n_lines_y:  # blocks = grid lines x = const (columns across Y)
+        node_block, node_pos, nper = i, j, n_lines_y
+    else:  # blocks = grid lines y = const
+        node_block, node_pos, nper = j, i, n_lines_x
+    owner = np.asarray(owner)
+    nb, s, m = int(max(n_lines_x, n_lines_y)), 6 * nper, 6 * int(n_patches)
+    slave = np.zeros((nb, nper), bool)
+    slave[node_block, node_pos] = owner >= 0
+    sizes = (nb * s * s, (nb - 1) * s * s, nb * s * m, m * m)
+    return BlockLayout(
+        node_block=node_block,
+        node_pos=node_pos,
+        owner=owner,
+        slave_dof=np.repeat(slave, 6, axis=1),
+        n_blocks=nb,
+        block_size=s,
+        m=m,
+        offsets=tuple(int(v) for v in np.cumsum((0,) + sizes[:-1])),
+        n_entries=int(sum(sizes)),
+    )
+
+
+def assemble_blocks(layout: BlockLayout, parts):
+    """Scatter element matrices into the block storage.
+
+    Args:
+        layout: the :class:`BlockLayout`.
+        parts: iterable of ``(Ke, fe, mat_index, vec_index)``: element matrices (n_el, k, k) and
+            vectors (n_el, k) in the interface-reduced DOF, with their targets
+            (:meth:`BlockLayout.matrix_index`, :meth:`BlockLayout.vector_index`).
+
+    Returns:
+        ``D`` (n_b, s, s) with identity rows/columns at slave DOF, ``C`` (n_b - 1, s, s),
+        ``K_ib`` (n_b, s, m), ``K_bb`` (m, m), ``f_i`` (n_b, s), ``f_b`` (m,).
+    """
+    nb, s, m = layout.n_blocks, layout.block_size, layout.m
+    buf, fbuf = None, None
+    for Ke, fe, mi, vi in parts:
+        if buf is None:
+            buf = jnp.zeros(layout.n_entries, Ke.dtype)
+            fbuf = jnp.zeros(nb * s + m, fe.dtype)
+        buf = buf.at[mi.ravel()].add(Ke.ravel(), mode="drop")
+        fbuf = fbuf.at[vi.ravel()].add(fe.ravel())
+    oD, oC, oB, oBB = layout.offsets
+    D = buf[oD:oC].reshape(nb, s, s)
+    D = D + jnp.asarray(layout.slave_dof, D.dtype)[:, :, None] * jnp.eye(s, dtype=D.dtype)
+    C = buf[oC:oB].reshape(nb - 1, s, s)
+    Kib = buf[oB:oBB].reshape(nb, s, m)
+    Kbb = buf[oBB:].reshape(m, m)
+    return D, C, Kib, Kbb, fbuf[: nb * s].reshape(nb, s), fbuf[nb * s :]
+
+
+def matvec(D: Float[Array, "nb s s"], C: Float[Array, "nb1 s s"], X: Float[Array, "nb s k"]):
+    """``K X`` for the block-tridiagonal ``K`` of ``D``, ``C`` (``X`` in blocks, (n_b, s, k))."""
+    Y = jnp.einsum("nij,njk->nik", D, X)
+    Y = Y.at[1:].add(jnp.einsum("nij,njk->nik", C, X[:-1]))
+    return Y.at[:-1].add(jnp.einsum("nji,njk->nik", C, X[1:]))
+
+
+def cholesky(D: Float[Array, "nb s s"], C: Float[Array, "nb1 s s"]):
+    """Block Cholesky factor ``(L, W)`` of the SPD block-tridiagonal ``K`` (module docstring):
+    ``L`` (n_b, s, s) lower-triangular diagonal blocks, ``W`` (n_b - 1, s, s) sub-diagonal."""
+    L0 = jnp.linalg.cholesky(D[0])
+
+    def step(Lp, DC):
+        Di, Ci = DC
+        # W = C L_p^{-T}  <=>  L_p W^T = C^T
+        W = jax.lax.linalg.triangular_solve(Lp, Ci, left_side=False, lower=True, transpose_a=True)
+        Li = jnp.linalg.cholesky(Di - W @ W.T)
+        return Li, (Li, W)
+
+    _, (Ls, Ws) = jax.lax.scan(step, L0, (D[1:], C))
+    return jnp.concatenate([L0[None], Ls]), Ws
+
+
+def cho_solve(factor, B: Float[Array, "nb s k"]) -> Float[Array, "nb s k"]:
+    """``K⁻¹ B`` from the :func:`cholesky` factor (forward then backward block sweep)."""
+    L, W = factor
+    tri = lambda Li, b, tr: jax.lax.linalg.triangular_solve(
+        Li, b, left_side=True, lower=True, transpose_a=tr
+    )
+    y0 = tri(L[0], B[0], False)
+
+    def fwd(yp, LWB):
+        Li, Wi, Bi = LWB
+        y = tri(Li, Bi - Wi @ yp, False)
+        return y, y
+
+    _, ys = jax.lax.scan(fwd, y0, (L[1:], W, B[1:]))
+    y = jnp.concatenate([y0[None], ys])
+    xl = tri(L[-1], y[-1], True)
+
+    def bwd(xn, LWy):
+        Li, Wn, yi = LWy
+        x = tri(Li, yi - Wn.T @ xn, True)
+        return x, x
+
+    _, xs = jax.lax.scan(bwd, xl, (L[:-1], W, y[:-1]), reverse=True)
+    return jnp.concatenate([xs, xl[None]])
+
+
+def spd_solve(D: Float[Array, "nb s s"], C: Float[Array, "nb1 s s"], B: Float[Array, "nb s k"]):
+    """``K⁻¹ B`` for SPD block-tridiagonal ``K``, differentiated as a linear solve (module
+    docstring): derivatives w.r.t. ``D``, ``C`` and ``B`` cost one more pair of sweeps."""
+    factor = cholesky(jax.lax.stop_gradient(D), jax.lax.stop_gradient(C))
+    return jax.lax.custom_linear_solve(
+        lambda x: matvec(D, C, x),
+        B,
+        solve=lambda _, b: cho_solve(factor, b),
+        symmetric=True,
+    )
