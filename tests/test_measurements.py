@@ -170,3 +170,54 @@ def test_fuzz_only_value_errors(header, rows):
         assert str(exc).startswith("fuzz.csv")
     else:
         assert np.all(np.isfinite(m.value)) and np.all(m.sigma > 0)
+
+
+def test_two_instruments_at_one_point_are_two_channels(tmp_path):
+    text = (HEADER + ",instrument\n0,P1,0,0,EBX,1,um/m,level\n0,P1,0,0,EBX,5,um/m,interferometer\n"
+            "10,P1,0,0,EBX,2,um/m,level\n10,P1,0,0,EBX,6,um/m,interferometer\n")
+    m = read_measurements(_write(tmp_path, text))
+    assert m.n == 4 and len(m.channels) == 2
+    assert {m.channel_label(c) for c in range(2)} == {"EBX at P1 (level)",
+                                                       "EBX at P1 (interferometer)"}
+    # each channel's own rows, in its own zero
+    chan = m.channel_index()
+    for c in range(2):
+        inst = m.channels[c][2]
+        assert all(m.instrument[i] == inst for i in np.flatnonzero(chan == c))
+
+
+def test_z_column_and_one_height_per_channel(tmp_path):
+    m = read_measurements(_write(tmp_path, HEADER + ",z_mm\n0,P5,0,0,EXX,1,um,120\n"
+                                 "10,P5,0,0,EXX,2,um,120\n"))
+    assert m.z == pytest.approx([0.12, 0.12])
+    with pytest.raises(ValueError, match=r":3: field 'z_mm'.*several heights"):
+        read_measurements(_write(tmp_path, HEADER + ",z_mm\n0,P5,0,0,EXX,1,um,120\n"
+                                 "0,P5,0,0,EXX,2,um,0\n"))
+    with pytest.raises(ValueError, match=r":2: field 'z_mm'.*allowed -2000 to 2000 mm"):
+        read_measurements(_write(tmp_path, HEADER + ",z_mm\n0,P5,0,0,EXX,1,um,9000\n"))
+
+
+def _outlier_text(rng, n_pos, runs, sd, outliers):
+    lines = [HEADER + ",run,direction"]
+    for i in range(n_pos):
+        for run in range(runs):
+            for d in ("forward", "backward"):
+                v = 5 * np.cos(i / 3) + rng.normal(0, sd)
+                if (i, run, d) in outliers:
+                    v += 10 * sd
+                lines.append(f"{i * 10},P1,0,0,EBX,{v:.6f},um/m,{run},{d}")
+    return "\n".join(lines) + "\n"
+
+
+def test_gross_outliers_are_set_aside_and_clean_data_kept():
+    rng = np.random.default_rng(7)
+    bad = {(3, 1, "forward"), (17, 4, "backward"), (30, 0, "forward")}
+    text = _outlier_text(rng, 36, 5, 4.0, bad)
+    m = merge_readings(parse_readings(text, "o.csv"), "o.csv")
+    lines = {2 + (i * 5 + run) * 2 + (d == "backward") for i, run, d in bad}
+    assert set(m.rejected) == lines
+    assert all(m.row_of_reading[k] == -1 for k, r in enumerate(m.readings) if r.line in lines)
+    # ten clean data sets of 3600 readings: a 6σ criterion rejects (almost) nothing
+    rejected = [len(merge_readings(parse_readings(_outlier_text(rng, 36, 5, 4.0, set())))
+                    .rejected) for _ in range(10)]
+    assert sum(rejected) <= 1, rejected

@@ -27,8 +27,8 @@ zero — and position:
 
 0. gross outliers are set aside: within each direction at a position, with at least
    :data:`MIN_RUNS_FOR_OUTLIERS` runs, a reading further than :data:`OUTLIER_Z` robust standard
-   deviations from the median of the other readings (the channel's pooled median absolute
-   deviation × 1.4826) is not used, and reported (:attr:`Measurements.rejected`);
+   deviations from the median of the other readings (the scale: 1.4826 × the median of that
+   same distance over the channel) is not used, and reported (:attr:`Measurements.rejected`);
 1. the readings of each direction are averaged over the runs;
 2. the value is the mean of the forward and backward means (so unequal run counts do not bias it;
    the reversal value, forward − backward, is kept for the report);
@@ -360,15 +360,18 @@ def _check_header(header, name, line):
 
 
 def _reject_outliers(groups) -> set[int]:
-    """``id``s of gross outliers (module docstring, step 0): per channel a robust σ from the
-    pooled absolute deviations from each direction's median; a reading further than
-    :data:`OUTLIER_Z` σ from the median of the *other* readings of its direction is rejected."""
+    """``id``s of gross outliers (module docstring, step 0). The statistic of a reading is its
+    distance from the median of the *other* readings of its direction at that position; its
+    robust scale, pooled over the channel, is 1.4826 × the median of the same statistic, so the
+    ratio is a standard normal deviate for clean data whatever the run count."""
+    def loo(v):
+        return np.array([abs(v[k] - np.median(np.delete(v, k))) for k in range(len(v))])
+
     dev = defaultdict(list)
     for (p, q, inst, _), dirs in groups.items():
         for rows in dirs.values():
             if len(rows) >= MIN_RUNS_FOR_OUTLIERS:
-                v = np.array([r.value for r in rows])
-                dev[(p, q, inst)].extend(np.abs(v - np.median(v)).tolist())
+                dev[(p, q, inst)].extend(loo(np.array([r.value for r in rows])).tolist())
     scale = {k: 1.4826 * float(np.median(d)) for k, d in dev.items() if len(d) >= 10}
     out = set()
     for (p, q, inst, _), dirs in groups.items():
@@ -378,11 +381,8 @@ def _reject_outliers(groups) -> set[int]:
         for rows in dirs.values():
             if len(rows) < MIN_RUNS_FOR_OUTLIERS:
                 continue
-            v = np.array([r.value for r in rows])
-            for k, r in enumerate(rows):
-                others = np.delete(v, k)
-                if abs(v[k] - np.median(others)) > OUTLIER_Z * sc:
-                    out.add(id(r))
+            d = loo(np.array([r.value for r in rows]))
+            out.update(id(r) for r, dk in zip(rows, d) if dk > OUTLIER_Z * sc)
     return out
 
 

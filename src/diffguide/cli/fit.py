@@ -11,25 +11,32 @@ from pathlib import Path
 
 import numpy as np
 
+from ..measurements import QUANTITIES
+
 PRESETS = ("majda2012",)
 _S_STEP_MM = 2.0
+#: Exit code when the results are written but the elastic fit did not converge.
+EXIT_NOT_CONVERGED = 3
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "fit",
         help="identify rail straightness profiles (µm) from measured joint errors (CSV)",
-        description="Fit the vertical and horizontal straightness profiles of both rails to "
-        "measured joint kinematic errors (levels, interferometers) through the elastic machine "
-        "model, by regularised Levenberg-Marquardt (GCV weight), with posterior ±σ bands, an "
-        "identifiability report and the classical rigid-table inversion side by side. Input "
-        "CSV: position_mm,point,x_mm,y_mm,quantity,value,unit[,sigma][,run][,direction]"
-        "[,instrument] (positions and points in mm; values in µm, mm, µm/m, µrad, mrad or "
-        "arcsec). Output folder (written atomically): rails.csv and rails_rigid.csv "
+        description="Fit the vertical and horizontal straightness profiles of both rails - and "
+        "the table's equivalent thickness and the preload, which nobody knows - to measured "
+        "joint kinematic errors (levels, interferometers) through the elastic machine model, by "
+        "regularised Levenberg-Marquardt (marginal-likelihood weight), with posterior ±σ bands "
+        "that include the structure's uncertainty, an identifiability report and the classical "
+        "rigid-table inversion side by side. Input CSV: position_mm,point,x_mm,y_mm,quantity,"
+        "value,unit[,sigma][,run][,direction][,instrument][,z_mm] (positions and points in mm; "
+        "values in µm, mm, µm/m, µrad, mrad or arcsec). Output folder (written atomically): "
+        "rails.csv and rails_rigid.csv "
         "(rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um), fit.csv "
         "(every input row with fitted and residual, in its unit), report.json, profiles.png, "
-        "curves.png.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        "curves.png. Exit codes: 0 converged; 3 results written but the fit did not converge "
+        "(flagged in report.json); 2 bad input or options (nothing written).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--preset", default="majda2012", choices=PRESETS,
                    help="machine model (majda2012: 1000 x 500 mm table, rails 340 mm apart)")
@@ -40,7 +47,21 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="B-spline knot spacing of the profiles (mm); default: the carriage's "
                    "loaded length (48 mm for majda2012)")
     p.add_argument("--lambda", dest="lam", type=float, default=None,
-                   help="fixed smoothness weight instead of GCV (whitened units, see report)")
+                   help="fixed smoothness weight instead of the chosen one (whitened units, as "
+                   "report.json's 'lambda')")
+    p.add_argument("--criterion", choices=("ml", "gcv"), default="ml",
+                   help="how the smoothness weight is chosen: marginal likelihood (default) or "
+                   "generalised cross-validation")
+    p.add_argument("--structure", choices=("estimate", "fixed"), default="estimate",
+                   help="estimate the table's equivalent thickness and the preload with the rails "
+                   "(default), or hold them at the machine's values")
+    p.add_argument("--thickness-prior-mm", metavar="VALUE,LO,HI", default=None,
+                   help="prior of the equivalent plate thickness (mm): a value and a plausible "
+                   "range (read as ±2σ of a log-normal prior); default: the machine's thickness "
+                   "and [0.5, 2] times it")
+    p.add_argument("--preload-prior", metavar="VALUE,LO,HI", default=None,
+                   help="prior of the preload (fraction of C), as for the thickness; default: the "
+                   "machine's preload and [0.25, 2] times it")
     p.add_argument("--nx", type=int, default=None, help="table mesh divisions along X "
                    "(default 20)")
     p.add_argument("--ny", type=int, default=None, help="table mesh divisions along Y "
@@ -75,27 +96,27 @@ def _say(args, text):
         print(text, flush=True)
 
 
-def _check_inputs(meas, args):
-    from ..majda2012 import STROKE
-    from ..presets import MAJDA2012_TABLE
-
-    half_l, half_w = MAJDA2012_TABLE["length"] / 2, MAJDA2012_TABLE["width"] / 2
-    for name, (x, y) in zip(meas.point_names, meas.points_xy):
+def _check_inputs(meas, args, cfg):
+    """Points, positions and options checked against the machine actually used."""
+    name = args.config or args.preset
+    half_l, half_w = cfg["table"]["length_mm"] / 2e3, cfg["table"]["width_mm"] / 2e3
+    for pname, (x, y) in zip(meas.point_names, meas.points_xy):
         if abs(x) > half_l or abs(y) > half_w:
             raise ValueError(
-                f"{meas.source}: point {name!r} at ({x * 1e3:g}, {y * 1e3:g}) mm is off the "
-                f"{args.preset} table (|x| <= {half_l * 1e3:g}, |y| <= {half_w * 1e3:g} mm)")
-    bad = np.abs(meas.position) > STROKE / 2 + 1e-9
+                f"{meas.source}: point {pname!r} at ({x * 1e3:g}, {y * 1e3:g}) mm is off the "
+                f"{name} table (|x| <= {half_l * 1e3:g}, |y| <= {half_w * 1e3:g} mm)")
+    stroke = cfg["machine"]["stroke_mm"] * 1e-3
+    bad = np.abs(meas.position) > stroke / 2 + 1e-9
     if bad.any():
         x = meas.position[bad][0]
-        raise ValueError(f"{meas.source}: position {x * 1e3:g} mm is outside the {args.preset} "
-                         f"stroke (±{STROKE / 2 * 1e3:g} mm)")
+        raise ValueError(f"{meas.source}: position {x * 1e3:g} mm is outside the {name} "
+                         f"stroke (±{stroke / 2 * 1e3:g} mm)")
     if len(np.unique(np.round(meas.position, 9))) < 4:
         raise ValueError(f"{meas.source}: at least 4 distinct positions are needed for a fit")
     if args.knot_spacing_mm is not None and not (1.0 <= args.knot_spacing_mm <= 1000.0):
         raise ValueError(f"--knot-spacing-mm must be in [1, 1000] mm, got {args.knot_spacing_mm}")
-    if args.lam is not None and not args.lam > 0:
-        raise ValueError(f"--lambda must be > 0, got {args.lam}")
+    if args.lam is not None and not (np.isfinite(args.lam) and args.lam > 0):
+        raise ValueError(f"--lambda must be a finite number > 0, got {args.lam}")
     for name in ("nx", "ny"):
         v = getattr(args, name)
         if v is not None and not 1 <= v <= 200:
@@ -142,51 +163,105 @@ def _fit_csv(meas, fits) -> str:
     from ..measurements import ANGULAR_UNITS, LINEAR_UNITS, format_csv
 
     cols = ["line", "position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit", "run",
-            "direction", "instrument"]
+            "direction", "instrument", "status"]
     for label in fits:
         cols += [f"fitted{label}", f"residual{label}"]
+    outlier_rows = set(int(i) for i in fits[""].outliers)
     rows = []
     for r, k in zip(meas.readings, meas.row_of_reading):
         f = {**LINEAR_UNITS, **ANGULAR_UNITS}[r.unit]
+        status = ("outlier reading (not used)" if k < 0 else
+                  "outlier value (zero weight)" if int(k) in outlier_rows else "used")
         row = {"line": r.line, "position_mm": float(r.position * 1e3), "point": r.point,
                "x_mm": float(r.xy[0] * 1e3), "y_mm": float(r.xy[1] * 1e3),
                "quantity": r.quantity, "value": float(r.value / f), "unit": r.unit,
-               "run": r.run, "direction": r.direction, "instrument": r.instrument}
+               "run": r.run, "direction": r.direction, "instrument": r.instrument,
+               "status": status}
         for label, fit in fits.items():
-            row[f"fitted{label}"] = float(fit.fitted[k] / f)
-            row[f"residual{label}"] = float((r.value - fit.fitted[k]) / f)
+            row[f"fitted{label}"] = "" if k < 0 else float(fit.fitted[k] / f)
+            row[f"residual{label}"] = "" if k < 0 else float((r.value - fit.fitted[k]) / f)
         rows.append(row)
     return format_csv(rows, tuple(cols))
 
 
 def _summary(fit, meas, seconds) -> dict:
-    from ..measurements import QUANTITIES
-
     chan = meas.channel_index()
     channels = []
-    for c, (p, q) in enumerate(meas.channels):
+    for c in range(len(meas.channels)):
         sel = chan == c
-        z = fit.residual[sel] / meas.sigma[sel]
+        p, q, inst = meas.channels[c]
+        used = sel & ~np.isin(np.arange(meas.n), fit.outliers)
+        z = fit.residual[used] / meas.sigma[used]
         channels.append({
-            "point": meas.point_names[p], "quantity": QUANTITIES[q],
+            "channel": meas.channel_label(c), "point": meas.point_names[p],
+            "quantity": QUANTITIES[q], "instrument": inst,
             "rms_residual_user": float(np.sqrt(np.mean(fit.residual[sel] ** 2)) * 1e6),
             "chi2": float(z @ z), "n": int(sel.sum()),
             "zero_offset_user": (None if not np.isfinite(fit.offsets[c])
                                  else float(fit.offsets[c] * 1e6)),
         })
+    structure = {}
+    for name, v in fit.structure.items():
+        unit, f = ("mm", 1e3) if name == "thickness" else ("fraction of C", 1.0)
+        structure[name] = {
+            "unit": unit, "value": v["value"] * f, "sigma": v["sigma"] * f,
+            "prior_value": v["prior_value"] * f,
+            "prior_range": [x * f for x in v["prior_range"]],
+            "determined_by_data": v["determined"], "at_interpolation_bound": v["at_bound"],
+            "note": ("determined by the data" if v["determined"] else
+                     "not determined by the data: the value is the prior's and its "
+                     "uncertainty widens the rails' bands"),
+        }
     return {
         "model": "rigid table" if fit.rigid else "elastic table",
         "method": ("classical linear inversion (rigid-body model linearised at straight "
-                   "rails, same gauge, penalty and GCV)" if fit.rigid else
+                   "rails, same gauge, penalty and weight choice)" if fit.rigid else
                    "Levenberg-Marquardt through the elastic model"),
-        "converged": bool(fit.converged), "lm_steps": int(fit.steps),
-        "lambda": fit.lam, "gcv": fit.gcv, "chi2": fit.chi2, "dof": fit.dof,
-        "chi2_per_dof": fit.chi2_dof, "effective_parameters": fit.edf,
+        "converged": bool(fit.converged), "status": fit.message, "lm_steps": int(fit.steps),
+        "lambda": fit.lam, "lambda_criterion": fit.weight.criterion,
+        "lambda_score": None if not np.isfinite(fit.weight.score) else fit.weight.score,
+        "lambda_at_search_bound": bool(fit.weight.at_bound),
+        "chi2": fit.chi2, "dof": fit.dof,
+        "chi2_per_dof": None if not np.isfinite(fit.chi2_dof) else fit.chi2_dof,
+        "sigma_scale": fit.sigma_scale, "effective_parameters": fit.edf,
+        "structure": structure,
+        "outlier_rows": [{"position_mm": float(meas.position[i] * 1e3),
+                          "channel": meas.channel_label(int(chan[i])),
+                          "residual_user": float(fit.residual[i] * 1e6)}
+                         for i in fit.outliers],
+        "lead_error_term": bool(len(fit.lead)),
         "knot_spacing_mm": fit.basis.spacing * 1e3, "coefficients_per_profile": fit.basis.n_coeffs,
         "s_range_mm": [fit.basis.start * 1e3, fit.basis.end * 1e3],
         "gauge": list(fit.gauge), "channels": channels, "fit_seconds": seconds,
         "units": "user units: µm for EXX/EYX/EZX, µm/m (µrad) for EAX/EBX/ECX",
     }
+
+
+def _parse_prior(text, flag, scale):
+    try:
+        v = [float(t) for t in text.split(",")]
+        if len(v) != 3:
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"{flag} must be VALUE,LO,HI (three numbers), got {text!r}") from None
+    if not (0 < v[1] <= v[0] <= v[2]) or not all(np.isfinite(v)):
+        raise ValueError(f"{flag} needs 0 < LO <= VALUE <= HI, got {text!r}")
+    return [x * scale for x in v]
+
+
+def structure_priors(args, cfg):
+    """The structural priors of ``args`` (defaults from the machine configuration)."""
+    from ..inverse import Prior, StructurePriors
+
+    if args.structure == "fixed":
+        return StructurePriors()
+    t0 = cfg["table"]["thickness_mm"] * 1e-3
+    p0 = cfg["carriage"]["preload_fraction"]
+    t = (_parse_prior(args.thickness_prior_mm, "--thickness-prior-mm", 1e-3)
+         if args.thickness_prior_mm else (t0, 0.5 * t0, 2.0 * t0))
+    p = (_parse_prior(args.preload_prior, "--preload-prior", 1.0)
+         if args.preload_prior else (p0, 0.25 * p0, 2.0 * p0))
+    return StructurePriors(Prior(*t), Prior(*p))
 
 
 def _check_out(out: Path) -> Path:
@@ -225,35 +300,49 @@ def _write_dir(out: Path, files: dict[str, object]) -> None:
 
 def run(args) -> int:
     from ..build import build_machine
-    from ..inverse import fit_rails, identifiability
+    from ..inverse import MachineFamily, fit_rails, identifiability
     from ..measurements import read_measurements
     from ._common import machine_config
 
     t_start = time.perf_counter()
     _check_out(Path(args.out))
-    meas = read_measurements(args.measurements)
-    _check_inputs(meas, args)
-    _say(args, f"{args.measurements}: {len(meas.readings)} readings -> {meas.n} merged rows in "
-               f"{len(meas.channels)} channels at {len(np.unique(meas.position))} positions")
-    points = {n: tuple(map(float, xy)) for n, xy in zip(meas.point_names, meas.points_xy)}
     cfg = machine_config(args)
-    machine = build_machine(cfg, nx=args.nx, ny=args.ny, points=points)
+    meas = read_measurements(args.measurements)
+    _check_inputs(meas, args, cfg)
+    priors = structure_priors(args, cfg)
+    lines = ", ".join(map(str, meas.rejected[:10])) + (" ..." if len(meas.rejected) > 10 else "")
+    _say(args, f"{args.measurements}: {len(meas.readings)} readings -> {meas.n} merged rows in "
+               f"{len(meas.channels)} channels at {len(np.unique(meas.position))} positions"
+               + (f"; {len(meas.rejected)} outlying readings set aside (lines {lines})"
+                  if meas.rejected else ""))
+    points = {n: tuple(map(float, xy)) for n, xy in zip(meas.point_names, meas.points_xy)}
+
+    def make_machine(**kw):
+        return build_machine(cfg, nx=args.nx, ny=args.ny, points=points, **kw)
+
+    family = MachineFamily.build(make_machine, priors, progress=lambda t: _say(args, t))
+    machine = family.base
     spacing = None if args.knot_spacing_mm is None else args.knot_spacing_mm * 1e-3
     fits, seconds = {}, {}
-    models = [("", machine)] + ([] if args.no_rigid else [("_rigid", machine.with_rigid_table())])
+    models = [("", family)] + ([] if args.no_rigid else [("_rigid", machine.with_rigid_table())])
     for label, m in models:
         t = time.perf_counter()
+        _say(args, f"{'rigid-table' if label else 'elastic'} fit: compiling and solving ...")
         fits[label] = fit_rails(m, meas, knot_spacing=spacing, lam=args.lam,
-                                method="linear" if label else "lm")
+                                criterion=args.criterion, method="linear" if label else "lm")
         seconds[label] = time.perf_counter() - t
         f = fits[label]
         _say(args, f"{'rigid-table' if label else 'elastic'} fit: chi2/dof = {f.chi2_dof:.3f} "
-                   f"(dof {f.dof:.1f}), lambda {f.lam:.3g} (GCV), {f.edf:.1f} effective "
-                   f"parameters, {f.steps} LM steps, converged {f.converged}, "
+                   f"(dof {f.dof:.1f}), lambda {f.lam:.3g} ({f.weight.criterion}), "
+                   f"{f.edf:.1f} effective parameters, {f.steps} LM steps, {f.message}, "
                    f"{seconds[label]:.1f} s")
+        for name, v in f.structure.items():
+            val, sd = ((v["value"] * 1e3, v["sigma"] * 1e3) if name == "thickness"
+                       else (v["value"] * 100, v["sigma"] * 100))
+            unit = "mm" if name == "thickness" else "% of C"
+            _say(args, f"  {name}: {val:.3g} ± {sd:.2g} {unit}"
+                       + ("" if v["determined"] else " (not determined by the data: prior)"))
     elastic = fits[""]
-    if not elastic.converged:
-        raise ValueError("the elastic fit did not converge (see --lambda, --knot-spacing-mm)")
     basis = elastic.basis
     s0 = np.ceil(basis.start * 1e3 / _S_STEP_MM - 1e-9) * _S_STEP_MM
     s_m = np.arange(s0, basis.end * 1e3 + 1e-9, _S_STEP_MM) * 1e-3
@@ -261,12 +350,16 @@ def run(args) -> int:
                             basis.end))
     profiles = {label: f.profiles(s_m) for label, f in fits.items()}
     report = {
-        "command": "diffguide fit", "preset": args.preset,
+        "command": "diffguide fit", "preset": None if args.config else args.preset,
+        "config": args.config,
+        "status": {"converged": bool(elastic.converged), "message": elastic.message,
+                   "exit_code": 0 if elastic.converged else EXIT_NOT_CONVERGED},
         "measurements": {
             "file": str(args.measurements), "readings": len(meas.readings), "merged_rows": meas.n,
             "points": {n: [float(x * 1e3), float(y * 1e3)] for n, (x, y) in
                        zip(meas.point_names, meas.points_xy)},
             "sigma_sources": sorted(set(meas.sigma_source)),
+            "rejected_reading_lines": list(meas.rejected),
         },
         "elastic": _summary(elastic, meas, seconds[""]),
         "identifiability": identifiability(elastic, machine),
@@ -299,40 +392,60 @@ def run(args) -> int:
     if not args.no_plots:
         files.update(_figures(meas, fits, profiles, s_m, truth))
     report["total_seconds"] = time.perf_counter() - t_start
-    files["report.json"] = json.dumps(report, indent=1, allow_nan=False) + "\n"
+    files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
     _write_dir(Path(args.out), files)
     if args.export_compensation:
-        _export_compensation(args, cfg, points, elastic)
+        _export_compensation(args, cfg, points, elastic, family)
     if args.truth:
         e = report["truth"]["rms_error_um"]
         _say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
              + (", rigid table {:.3f} µm".format(e["rigid_table"]["all"]) if "_rigid" in fits
                 else ""))
     _say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
+    if not elastic.converged:
+        print(f"diffguide fit: warning: the fit did not converge ({elastic.message}); the results "
+              f"in {args.out}/ are the best estimate so far and are flagged in report.json",
+              file=sys.stderr)
     sys.stdout.flush()
-    return 0
+    return 0 if elastic.converged else EXIT_NOT_CONVERGED
+
+
+def _jsonable(obj):
+    """Plain JSON types; non-finite numbers become null (never NaN in the file)."""
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    return obj
 
 
 def _figures(meas, fits, profiles, s_m, truth):
-    from ..measurements import QUANTITIES
     from ..plotting.fit import plot_curves, plot_profiles
 
     labels = {"": "elastic", "_rigid": "rigid table"}
     fig1 = plot_profiles(s_m, {labels[k]: v for k, v in profiles.items()}, truth=truth)
     chan = meas.channel_index()
     channels = []
-    for c, (p, q) in enumerate(meas.channels):
+    for c, (_, q, _) in enumerate(meas.channels):
         sel = chan == c
         unit = "µm" if QUANTITIES[q] in ("EXX", "EYX", "EZX") else "µm/m"
         rigid = fits["_rigid"].fitted[sel] * 1e6 if "_rigid" in fits else None
-        channels.append((f"{QUANTITIES[q]} at {meas.point_names[p]}", unit,
+        channels.append((meas.channel_label(c), unit,
                          meas.position[sel] * 1e3, meas.value[sel] * 1e6,
                          meas.sigma[sel] * 1e6, fits[""].fitted[sel] * 1e6, rigid))
     fig2 = plot_curves(channels)
     return {"profiles.png": fig1, "curves.png": fig2}
 
 
-def _export_compensation(args, cfg, measured_points, fit) -> None:
+def _export_compensation(args, cfg, measured_points, fit, family) -> None:
     """The fitted model's errors at ``--at`` over the stroke, as a compensation table, with a
     warning for each point where a rigid-body compensation from ``--at`` would not hold."""
     from ..build import build_machine
@@ -344,7 +457,12 @@ def _export_compensation(args, cfg, measured_points, fit) -> None:
     points.update(measured_points)
     if args.at not in points:
         raise ValueError(f"--at must be one of the points {', '.join(points)}, got {args.at!r}")
-    machine = build_machine(cfg, nx=args.nx, ny=args.ny, points=points)
+    kw = {}  # the fitted structure
+    if "thickness" in fit.structure:
+        kw["thickness"] = fit.structure["thickness"]["value"]
+    if "preload" in fit.structure:
+        kw["preload_fraction"] = fit.structure["preload"]["value"]
+    machine = build_machine(cfg, nx=args.nx, ny=args.ny, points=points, **kw)
     half = cfg["machine"]["stroke_mm"] / 2
     x_mm = np.linspace(-half, half, 71)
     je = joint_errors(machine, fit.rails(), x_mm * 1e-3)

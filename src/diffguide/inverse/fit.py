@@ -26,12 +26,13 @@ merged values rejected as outliers, below). The fit minimises
 
 .. math::  ‖r(x)‖² + λ‖GZθ‖² + ‖q‖² + ε²‖ℓ‖²
 
-(``‖Gc‖² = Σ∫e''² ds + ℓ_r⁻⁴Σ∫e² ds``; ``ε`` = 1e-3 µm⁻¹ keeps the lead term proper) with
-``optimistix.LevenbergMarquardt`` in coordinates that whiten the Gauss–Newton Hessian, started
-from the Gauss–Newton step at ``x = 0``. λ is chosen on the problem linearised at the current
-estimate (:mod:`.weight`: marginal likelihood by default, GCV on request, or given), with the
-structural and lead unknowns projected out, then re-chosen at the solution and the fit repeated
-once if it moved by more than a factor 1.5.
+(``‖Gc‖² = Σ∫e''² ds + ℓ_r⁻⁴Σ∫e² ds``; ``ε`` = 1e-3 µm⁻¹ keeps the lead term proper) by
+Levenberg–Marquardt (:func:`_levenberg_marquardt`: one compiled linearisation — residual and
+``jacfwd`` Jacobian through the implicit equilibria — per step, the damped normal equations
+solved in NumPy), started from the Gauss–Newton step at ``x = 0``. λ is chosen on the problem
+linearised at the current estimate (:mod:`.weight`: marginal likelihood by default, GCV on
+request, or given), with the structural and lead unknowns projected out, then re-chosen at the
+solution and the fit repeated once if it moved by more than a factor 1.5.
 
 **Outliers.** Gross outliers among the readings are set aside when merging
 (:mod:`diffguide.measurements`); a merged value whose standardised residual still exceeds
@@ -52,7 +53,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 from .._precision import require_x64
 from ..kinematics import joint_errors
@@ -132,36 +132,6 @@ def _data_residual_full(x, prob: _Problem):
     return prob.weight * (d - off[prob.chan]) / prob.sigma, pred, ok
 
 
-def _residual_and_jacobian(x, prob: _Problem):
-    """``r(x)`` and ``∂r/∂x`` (forward mode only: never ``jacrev`` through the equilibrium)."""
-    J, r = jax.jacfwd(lambda t: (_data_residual_full(t, prob)[0],) * 2, has_aux=True)(x)
-    return r, J
-
-
-@eqx.filter_custom_jvp
-def _data_residual_lm(phi, T, prob: _Problem):
-    """The data residual at ``v = Tφ`` whose JVP is ``J·T·dφ`` with ``J`` built in the primal pass.
-
-    LevenbergMarquardt queries a zero-filled placeholder of its linearisation at step 0; through
-    the plain model that placeholder reaches the equilibrium's implicit linear solve as a zero
-    operator, which raises. Here the linearisation holds only the matrix ``J``.
-    """
-    return _data_residual_full(T @ phi, prob)[0]
-
-
-@_data_residual_lm.def_jvp
-def _data_residual_lm_jvp(primals, tangents):
-    phi, T, prob = primals
-    dphi = tangents[0]
-    r, J = _residual_and_jacobian(T @ phi, prob)
-    return r, (jnp.zeros_like(r) if dphi is None else J @ (T @ dphi))
-
-
-def _lm_residual(phi, args):
-    prob, MT, T, Pf = args  # v = MTφ (all coefficients), x = Tφ (gauge-fixed unknowns)
-    return jnp.concatenate([_data_residual_lm(phi, MT, prob), Pf @ (T @ phi)])
-
-
 @eqx.filter_jit
 def _linearise(v, prob: _Problem):
     """Residual, Jacobian w.r.t. ``v = (c, q, ℓ)``, model values, convergence."""
@@ -174,12 +144,46 @@ def _linearise(v, prob: _Problem):
     return r, J, pred, ok
 
 
-@eqx.filter_jit
-def _lm(phi0, args, rtol, atol, max_steps: int):
-    solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
-    sol = optx.least_squares(_lm_residual, solver, phi0, args=args, max_steps=max_steps,
-                             throw=False)
-    return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"]
+def _levenberg_marquardt(x, r, J, pred, Jc, linearise, P, rtol, max_steps):
+    """Minimise ``‖r(x)‖² + xᵀPx`` from ``x`` (with ``r``, ``J`` there) by Levenberg–Marquardt
+    with Marquardt's diagonal scaling; one compiled linearisation per step (the model is nearly
+    linear in µm-sized rail errors, so the Gauss–Newton step, μ = 0, is tried first).
+
+    Stops when the Gauss–Newton decrement ``δᵀHδ`` (the χ² a full step would still gain) is below
+    ``rtol`` — a change of the objective far below 1 means nothing statistically.
+    Returns ``(x, r, J, pred, Jc, converged, steps, reason)``.
+    """
+    cost = float(r @ r + x @ P @ x)
+    mu = 0.0
+    for step in range(1, max_steps + 1):
+        H = J.T @ J + P
+        g = J.T @ r + P @ x
+        D = np.diag(np.diag(H))
+        try:
+            delta = -np.linalg.solve(H + mu * D, g)
+        except np.linalg.LinAlgError:
+            mu = max(mu * 10, 1e-6)
+            continue
+        decrement = float(-g @ delta)
+        if decrement < rtol and mu == 0.0:
+            return x, r, J, pred, Jc, True, step - 1, "converged"
+        r_t, J_t, pred_t, ok_t, Jc_t = linearise(x + delta)
+        cost_t = (float(r_t @ r_t + (x + delta) @ P @ (x + delta))
+                  if ok_t and np.all(np.isfinite(J_t)) else np.inf)
+        if cost_t <= cost:
+            x, r, J, pred, Jc, cost = x + delta, r_t, J_t, pred_t, Jc_t, cost_t
+            if decrement < rtol:
+                return x, r, J, pred, Jc, True, step, "converged"
+            mu = 0.0 if mu <= 1e-6 else mu / 10
+        else:
+            mu = max(mu * 10, 1e-6)
+            if mu > 1e12:
+                return x, r, J, pred, Jc, False, step, (
+                    "Levenberg-Marquardt cannot decrease the objective further (the damping "
+                    "reached 1e12); the best estimate so far is returned")
+    return x, r, J, pred, Jc, False, max_steps, (
+        f"Levenberg-Marquardt stopped after {max_steps} steps without meeting its tolerance; "
+        "the best estimate so far is returned")
 
 
 class RailFit(eqx.Module):
@@ -306,7 +310,6 @@ def fit_rails(
     criterion: str = "ml",
     x_ref: float = 0.0,
     rtol: float = 1e-6,
-    atol: float = 1e-6,
     max_steps: int = 60,
     method: str = "lm",
     reject_outliers: bool = True,
@@ -325,7 +328,8 @@ def fit_rails(
         lam: regularisation weight; default chosen by ``criterion`` (:mod:`.weight`).
         criterion: ``"ml"`` (marginal likelihood) or ``"gcv"``.
         x_ref: reference position of the model (m); the result does not depend on it.
-        rtol, atol: LM tolerances (unknowns whitened). max_steps: LM step limit per pass.
+        rtol: LM tolerance on the Gauss–Newton decrement (χ² units). max_steps: LM step limit
+            per pass.
         method: ``"lm"`` (through the nonlinear model) or ``"linear"`` (linearised at straight
             rails and solved once: the classical linear inversion).
         reject_outliers: zero-weight merged values beyond :data:`OUTLIER_Z` and refit once.
@@ -410,29 +414,16 @@ def fit_rails(
     steps, converged, message = 0, True, "converged"
     outliers = np.zeros(0, int)
     passes = 0
+    if method == "lm":
+        r, J, pred, ok, Jc = linearise(x)
+        if not (bool(ok) and np.all(np.isfinite(J))):  # GN start too far: start from zero
+            x = np.zeros(n_x)
+            r, J, pred, ok, Jc = linearise(x)
     while method == "lm":
         passes += 1
-        # LM works on φ with x = Tφ, TᵀHT = I (H the Gauss–Newton Hessian): isotropic damping
-        # then suits every direction (its eigenvalues span ~10 decades).
-        T = _preconditioner(J.T @ J + P)
-        Pf = _sqrt_psd(P)
-        args = (prob, jnp.asarray(M @ T), jnp.asarray(T), jnp.asarray(Pf))
-        value, lm_ok, n = _lm(jnp.asarray(np.linalg.solve(T, x)), args, rtol, atol, max_steps)
-        x_new = T @ np.asarray(value)
-        steps += int(n)
-        r_new, J_new, pred_new, ok_new, Jc_new = linearise(x_new)
-        if not (bool(ok_new) and np.all(np.isfinite(J_new)) and np.all(np.isfinite(r_new))):
-            converged, message = False, ("an equilibrium did not converge at the LM solution; "
-                                         "the last estimate whose equilibria all converged is "
-                                         "returned")
-            break
-        x, r, J, pred, Jc = x_new, r_new, J_new, pred_new, Jc_new
-        if not bool(lm_ok):
-            converged, message = False, (f"Levenberg-Marquardt stopped after {int(n)} steps "
-                                         "without meeting its tolerance; the best estimate so far "
-                                         "is returned")
-        else:
-            converged, message = True, "converged"
+        x, r, J, pred, Jc, converged, n, message = _levenberg_marquardt(
+            x, r, J, pred, Jc, linearise, P, rtol, max_steps)
+        steps += n
         if passes >= 4:
             break
         redo = False
@@ -533,19 +524,3 @@ def _structure_report(family: MachineFamily, q, cov_q) -> dict:
 def _spd(H):
     H = 0.5 * (H + H.T)
     return H
-
-
-def _sqrt_psd(P):
-    w, V = np.linalg.eigh(0.5 * (P + P.T))
-    return (V * np.sqrt(np.maximum(w, 0.0))) @ V.T
-
-
-def _preconditioner(H):
-    """``T`` with ``Tᵀ H T = I`` (``L⁻ᵀ`` of the Cholesky factor; eigenvalues if that fails)."""
-    try:
-        L = np.linalg.cholesky(H)
-        return np.linalg.inv(L).T
-    except np.linalg.LinAlgError:
-        w, V = np.linalg.eigh(0.5 * (H + H.T))
-        w = np.maximum(w, 1e-12 * w.max())
-        return V / np.sqrt(w)

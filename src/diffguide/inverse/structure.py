@@ -14,8 +14,10 @@ Two structural unknowns, both dimensionless and on a log scale:
 
 The preload enters the carriage directly (``Carriage.preload_force`` is a number of the model).
 The table is condensed once per thickness at :data:`N_NODES` Chebyshev nodes of ``ln t`` over
-the prior range (widened by :data:`MARGIN` on each side), and every array of the condensed table
-is interpolated between them by the Lagrange polynomial in ``ln t``:
+the prior range (widened by :data:`MARGIN` on each side), and the arrays of the condensed table
+that the equilibrium and the control points use (:data:`INTERPOLATED`: stiffness, loads, point
+recovery) are interpolated between them by the Lagrange polynomial in ``ln t`` (the mesh-node
+fields of the error maps stay at the prior thickness):
 
 .. math::  T(u) = \sum_j T(u_j)\,\prod_{k≠j}\frac{u-u_k}{u_j-u_k},\qquad u = \ln t,
 
@@ -47,6 +49,8 @@ MARGIN = 1.15
 DETERMINED_RATIO = 0.7
 
 NAMES = ("thickness", "preload")
+#: Fields of the condensed table interpolated in thickness.
+INTERPOLATED = ("K", "f", "R", "r0")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,14 +117,15 @@ class MachineFamily(eqx.Module):
 
     Attributes:
         base: the machine at the prior values (its static structure: points, carriages, rails).
-        tables: the condensed table at every node, array leaves stacked on a leading axis.
+        tables: the :data:`INTERPOLATED` fields of the condensed table at every node, stacked
+            on a leading axis.
         nodes: the nodes ``ln t`` (static).
         thickness0: the base machine's thickness (m). preload0: its preload fraction.
         priors: the priors (static).
     """
 
     base: eqx.Module
-    tables: eqx.Module | None
+    tables: dict | None
     nodes: tuple[float, ...] = eqx.field(static=True)
     thickness0: float = eqx.field(static=True)
     preload0: float = eqx.field(static=True)
@@ -161,8 +166,7 @@ class MachineFamily(eqx.Module):
                 progress(f"condensing the table at thickness {np.exp(u) * 1e3:.1f} mm "
                          f"({k + 1}/{len(nodes)})")
             tables.append(make_machine(thickness=float(np.exp(u)), **kw).table)
-        dyn = [eqx.partition(t, eqx.is_array)[0] for t in tables]
-        stacked = jax.tree.map(lambda *xs: jnp.stack(xs), *dyn)
+        stacked = {k: jnp.stack([getattr(t, k) for t in tables]) for k in INTERPOLATED}
         return cls(base, stacked, tuple(float(u) for u in nodes), float(t0), preload0, priors)
 
     @property
@@ -199,9 +203,9 @@ class MachineFamily(eqx.Module):
             if n == "thickness":
                 u = jnp.clip(params[i] + np.log(self.thickness0), self.nodes[0], self.nodes[-1])
                 w = lagrange_weights(u, np.asarray(self.nodes))
-                arrays = jax.tree.map(lambda L: jnp.tensordot(w, L, axes=1), self.tables)
-                static = eqx.partition(m.table, eqx.is_array)[1]
-                m = eqx.tree_at(lambda mm: mm.table, m, eqx.combine(arrays, static))
+                fields = [jnp.tensordot(w, self.tables[k], axes=1) for k in INTERPOLATED]
+                m = eqx.tree_at(lambda mm: [getattr(mm.table, k) for k in INTERPOLATED], m,
+                                fields)
             else:
                 f0 = m.carriage.preload_force
                 m = eqx.tree_at(lambda mm: mm.carriage.preload_force, m,
