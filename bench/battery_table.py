@@ -3,7 +3,8 @@
 Runs every case (or those named) one after the other — simulate on the fine truth machine, write
 the readings as CSV text, parse and merge, fit with ``tests/battery/cases.run_fit``, score — and
 prints one row per case: what it stresses, χ²/dof, the profile RMS error (µm, and % of the
-truth's RMS; all four profiles, gauge removed, 10 % trimmed at each end), the ±2σ coverage
+truth's RMS; all four profiles, gauge removed, 10 % trimmed at each end), the RMS of the fit's σ
+(100 % coverage under a huge σ says nothing), the ±2σ coverage
 (overall and the worst profile), LM convergence and the seconds from readings to score (machine
 builds and compiles included where a case is the first to need them; noisy on a shared CPU).
 A fit that raises is a row too, with the exception. Run:
@@ -33,16 +34,14 @@ def _row(res) -> tuple[str, dict]:
     if res.fit is None:
         msg = res.error.splitlines()[0]
         msg = msg if len(msg) <= 90 else msg[:87] + "..."
-        return (f"| {c.name} | {c.stresses} | — | raised: `{msg}` | — | — | {res.seconds:.0f} |"), {
-            "name": c.name,
-            "error": res.error,
-            "seconds": res.seconds,
-        }
+        row = f"| {c.name} | {c.stresses} | — | raised: `{msg}` | — | — | — | {res.seconds:.0f} |"
+        return row, {"name": c.name, "error": res.error, "seconds": res.seconds}
     s = res.score
     r, p = divmod(int(s.coverage.argmin()), 2)
     row = (
         f"| {c.name} | {c.stresses} | {res.fit.chi2_dof:.2f} | {s.overall_rms_um:.3g} µm "
         f"({100 * s.overall_rel:.0f} %; worst {100 * s.worst_rel:.0f} %) | "
+        f"{s.overall_sigma_rms_um:.3g} µm | "
         f"{100 * s.overall_coverage:.0f} % / {100 * s.worst_coverage:.0f} % "
         f"({s.label(r, p)}) | {'yes' if res.fit.converged else '**no**'} | "
         f"{res.seconds:.0f} |"
@@ -54,6 +53,7 @@ def _row(res) -> tuple[str, dict]:
         "seconds": res.seconds,
         "overall_rms_um": s.overall_rms_um,
         "overall_rel": s.overall_rel,
+        "overall_sigma_rms_um": s.overall_sigma_rms_um,
         "overall_coverage": s.overall_coverage,
         "rms_um": s.rms_um.tolist(),
         "rel": s.rel.tolist(),
@@ -78,10 +78,10 @@ def main() -> None:
         f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}, float64 -->"
     )
     print(
-        "| case | what it stresses | χ²/dof | profile RMS error (% of truth) | "
+        "| case | what it stresses | χ²/dof | profile RMS error (% of truth) | σ RMS | "
         "±2σ coverage: all / worst profile | converged | s |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     out = []
     for name in names:
         row, data = _row(result(name))

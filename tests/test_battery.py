@@ -23,7 +23,21 @@ WRONG_STRUCTURE = [name for name, make in CASES.items() if make().wrong_structur
 
 #: Cases that fail today, per test: the reason quotes the numbers measured before the
 #: structure-as-unknowns fit (bench/battery_table.py). The lead removes these marks.
-XFAIL: dict[tuple[str, str], str] = {}
+_BEFORE = "before the structure-as-unknowns fit (fit_rails on the preset), measured: "
+XFAIL: dict[tuple[str, str], str] = {
+    ("coverage", "blind_wavelengths"): _BEFORE + "error 75 % of the truth RMS, coverage 65 % "
+    "overall, 59/73/59/69 % per profile (r1 v/h, r2 v/h)",
+    ("coverage", "thickness_30mm"): _BEFORE + "χ²/dof 1.14, coverage 56 % overall, "
+    "88/18/100/17 % per profile",
+    ("coverage", "thickness_70mm"): _BEFORE + "χ²/dof 1.15, coverage 55 % overall, "
+    "81/37/68/33 % per profile",
+    ("coverage", "preload_2pct"): _BEFORE + "χ²/dof 0.94, coverage 82 % overall, "
+    "98/67/99/63 % per profile",
+    ("error", "thickness_30mm"): _BEFORE + "profile errors 10/76/7/96 % of the truth RMS",
+    ("error", "thickness_70mm"): _BEFORE + "profile errors 9/35/12/47 % of the truth RMS",
+    ("error", "preload_2pct"): _BEFORE + "profile errors 6/26/5/31 % of the truth RMS",
+    ("error", "preload_13pct"): _BEFORE + "profile errors 6/12/6/19 % of the truth RMS",
+}
 
 
 def _params(test: str, names) -> list:

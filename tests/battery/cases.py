@@ -285,7 +285,7 @@ def positions_141() -> Case:
 
 
 def rms_20um() -> Case:
-    """The bundled truth scaled to 20 µm RMS: far beyond the 2.5 µm preload approach."""
+    """The bundled truth scaled to 20 µm RMS, 8× the 2.5 µm preload approach: nonlinear."""
     return _case(rms_20um, truth=BUNDLED_TRUTH, rms_um=20.0, seed=1111)
 
 
@@ -445,8 +445,9 @@ def measurements(case: Case, errors: np.ndarray | None = None, noise: bool = Tru
 # ----------------------------------------------------------------------------- the fit
 
 
-def run_fit(case: Case, meas):
-    """Fit ``meas`` with the preset's model — **the one place the battery calls the fit**.
+def run_fit(case: Case, meas=None):
+    """Fit the case's data (``meas``, default :func:`measurements`) with the preset's model —
+    **the one place the battery calls the fit**.
 
     Today: the ``majda2012`` preset (20 × 10 mesh, 50 mm plate, 8 % preload) at the measured
     points, ``fit_rails(machine, meas)``. The structure-as-unknowns fit will take the machine
@@ -455,6 +456,8 @@ def run_fit(case: Case, meas):
     """
     from diffguide.inverse import fit_rails
 
+    if meas is None:
+        meas = measurements(case)
     points = dict(zip(meas.point_names, map(tuple, np.asarray(meas.points_xy, float))))
     return fit_rails(fit_machine(points), meas)
 

@@ -34,8 +34,8 @@ class Score:
     Attributes:
         rms_um: RMS error. truth_rms_um: RMS of the gauge-fixed truth. rel: their ratio.
         sigma_rms_um: RMS of the fit's σ. coverage: fraction of points inside ±2σ.
-        overall_rms_um, overall_truth_rms_um, overall_rel, overall_coverage: over all four
-            profiles together. s: the scored grid (m).
+        overall_rms_um, overall_truth_rms_um, overall_rel, overall_sigma_rms_um,
+            overall_coverage: over all four profiles together. s: the scored grid (m).
     """
 
     rms_um: np.ndarray
@@ -46,6 +46,7 @@ class Score:
     overall_rms_um: float
     overall_truth_rms_um: float
     overall_rel: float
+    overall_sigma_rms_um: float
     overall_coverage: float
     s: np.ndarray
 
@@ -88,6 +89,7 @@ def score_profiles(basis, fix_slope, values, sigma, truth, s) -> Score:
         overall_rms_um=float(np.sqrt(np.mean(err**2))),
         overall_truth_rms_um=float(np.sqrt(np.mean(tru**2))),
         overall_rel=float(np.sqrt(np.mean(err**2)) / np.sqrt(np.mean(tru**2))),
+        overall_sigma_rms_um=float(np.sqrt(np.mean(sig**2))),
         overall_coverage=float(inside.mean()),
         s=s[keep],
     )
