@@ -89,6 +89,8 @@ def test_report_against_truth(out_dir):
     rms = truth["rms_error_um"]
     assert rms["elastic"]["all"] < 0.5 * rms["rigid_table"]["all"]
     assert truth["coverage_2sigma"]["elastic"] >= 0.9
+    th = el["structure"]["thickness"]  # the data were simulated at 50 mm (a finer mesh)
+    assert abs(th["value"] - 50.0) <= 2 * th["sigma"] and th["determined_by_data"]
     ident = rep["identifiability"]
     assert {"gauge", "singular_values", "wavelengths", "regularisation"} <= set(ident)
 
@@ -114,6 +116,47 @@ def test_off_table_point_and_foreign_out_dir(tmp_path, capsys):
     assert main(["fit", "--measurements", str(DATA), "--out", str(foreign), "--quiet"]) == 2
     assert "refusing to replace" in capsys.readouterr().err
     assert (foreign / "thesis.tex").read_text() == "precious"
+
+
+def _subset(tmp_path, keep) -> Path:
+    """The bundled readings restricted to rows whose point is in ``keep``."""
+    lines = DATA.read_text().splitlines()
+    head = [ln for ln in lines if ln.startswith(("#", "position_mm"))]
+    rows = [ln for ln in lines if not ln.startswith(("#", "position_mm")) and ln.strip()
+            and ln.split(",")[1] in keep]
+    path = tmp_path / "subset.csv"
+    path.write_text("\n".join(head + rows) + "\n")
+    return path
+
+
+def test_interferometer_only_writes_an_honest_report(tmp_path):
+    """One interferometer at the centre, pitch and yaw only (the commonest real data set) with a
+    given λ: a report is written, λ is the given one, no NaN (the JSON has none by
+    construction: allow_nan=False), the rails' mean is determined and their difference is not."""
+    data = _subset(tmp_path, {"P5"})
+    out = tmp_path / "o"
+    rc = main(["fit", "--measurements", str(data), "--out", str(out), "--lambda", "0.01",
+               "--structure", "fixed", "--no-rigid", "--no-plots", "--quiet"])
+    assert rc in (0, 3)
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["elastic"]["lambda"] == 0.01
+    assert rep["elastic"]["chi2_per_dof"] is not None and rep["elastic"]["chi2_per_dof"] > 0
+    combos = {c["combination"].split(" (")[0]: c for c in rep["identifiability"]["wavelengths"]}
+    assert not combos["vertical difference"]["determined"]
+    assert not combos["horizontal difference"]["determined"]
+    assert len(list(csv.DictReader((out / "rails.csv").open()))) > 0
+
+
+def test_not_converged_is_written_and_flagged(tmp_path, capsys):
+    out = tmp_path / "o"
+    rc = main(["fit", "--measurements", str(DATA), "--out", str(out), "--max-steps", "0",
+               "--structure", "fixed", "--no-rigid", "--no-plots", "--quiet"])
+    assert rc == 3
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["status"]["converged"] is False and rep["status"]["exit_code"] == 3
+    assert "stopped after 0 steps" in rep["status"]["message"]
+    assert "identifiability" in rep and (out / "rails.csv").exists()
+    assert "did not converge" in capsys.readouterr().err
 
 
 def test_help_mentions_units(capsys):

@@ -4,10 +4,19 @@ a non-spline truth, simulated on a finer table mesh (40 x 20) than the fit uses 
 import importlib.util
 from pathlib import Path
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from diffguide.inverse import RailBasis, blind_wavelengths, fit_rails, identifiability
+from diffguide.inverse import (
+    MachineFamily,
+    Prior,
+    RailBasis,
+    StructurePriors,
+    blind_wavelengths,
+    fit_rails,
+    identifiability,
+)
 from diffguide.inverse import fit as fitmod
 from diffguide.measurements import Measurements
 
@@ -58,13 +67,17 @@ def _determined_grid(fit, report, n=401):
 
 
 def _assert_within_5_percent_rms(fit, mk, s):
-    """Each recovered profile within 5 % RMS of the (gauge-fixed) truth on the grid ``s``."""
+    _assert_within_rms(fit, mk, s, 0.05)
+
+
+def _assert_within_rms(fit, mk, s, bound):
+    """Each recovered profile within ``bound`` RMS of the (gauge-fixed) truth on the grid ``s``."""
     val, _ = fit.profiles(s)
     truth = _truth(mk, fit, s)
     for r in range(2):
         for p in range(2):
             rel = np.sqrt(np.mean((val[r, p] - truth[r, p]) ** 2) / np.mean(truth[r, p] ** 2))
-            assert rel < 0.05, (r, p, rel)
+            assert rel < bound, (r, p, rel)
 
 
 def test_noise_free_recovery_within_5_percent(case):
@@ -137,16 +150,82 @@ def test_blind_wavelengths_formulae(case):
 
 
 def test_jacobian_matches_finite_differences(case):
+    """The linearisation's Jacobian (rails, structure, lead) against central differences."""
     _, machine, meas, fit = case
-    prob = fitmod._problem(machine, meas, fit.basis, 0.0)
-    c = fit.coeffs.reshape(-1) * 1e6
-    _, J, _, _ = fitmod._linearise(c, prob)
-    v = np.random.default_rng(0).standard_normal(c.size) * 0.3  # µm
-    h = 1e-3
-    rp = np.asarray(fitmod._linearise(c + h * v, prob)[0])
-    rm = np.asarray(fitmod._linearise(c - h * v, prob)[0])
-    fd = (rp - rm) / (2 * h)
-    assert np.asarray(J) @ v == pytest.approx(fd, rel=1e-4, abs=1e-6 * np.abs(fd).max())
+    fam = _family(machine, meas)
+    lead_B, _ = fitmod._lead_basis(meas)
+    prob = fitmod._problem(fam, meas, fit.basis, lead_B, 0.0)
+    v0 = np.concatenate([fit.coeffs.reshape(-1) * 1e6, [0.1, -0.2]])
+    _, J, _, _ = fitmod._linearise(jnp.asarray(v0), prob)
+    rng = np.random.default_rng(0)
+    for v in (np.concatenate([rng.standard_normal(v0.size - 2) * 0.3, [0, 0]]),
+              np.concatenate([np.zeros(v0.size - 2), [0.3, 0.0]]),
+              np.concatenate([np.zeros(v0.size - 2), [0.0, 0.3]])):
+        h = 1e-3
+        rp = np.asarray(fitmod._linearise(jnp.asarray(v0 + h * v), prob)[0])
+        rm = np.asarray(fitmod._linearise(jnp.asarray(v0 - h * v), prob)[0])
+        fd = (rp - rm) / (2 * h)
+        assert np.asarray(J) @ v == pytest.approx(fd, rel=1e-4, abs=1e-6 * np.abs(fd).max())
+
+
+_FAMILY = {}
+
+
+def _family(machine, meas):
+    """The majda2012 family (thickness 25–100 mm, preload 2–16 %) at the measurement points."""
+    from diffguide.majda2012 import majda2012_machine
+
+    key = tuple(meas.point_names)
+    if key not in _FAMILY:
+        pts = dict(zip(meas.point_names, map(tuple, meas.points_xy)))
+        _FAMILY[key] = MachineFamily.build(
+            lambda **kw: majda2012_machine(points=pts, **kw),
+            StructurePriors(Prior(0.05, 0.025, 0.1), Prior(0.08, 0.02, 0.16)))
+    return _FAMILY[key]
+
+
+def test_interpolated_table_matches_direct_condensation(case):
+    """Between the interpolation nodes the family's table equals a direct condensation at that
+    thickness to 1e-5 relative; the preload factor scales the element preload exactly."""
+    from diffguide.majda2012 import majda2012_machine
+
+    _, machine, meas, _ = case
+    fam = _family(machine, meas)
+    pts = dict(zip(meas.point_names, map(tuple, meas.points_xy)))
+    for t in (0.031, 0.0613, 0.087):
+        m = fam.machine(jnp.array([np.log(t / 0.05), np.log(0.5)]))
+        ref = majda2012_machine(thickness=t, preload_fraction=0.04, points=pts)
+        for name in ("K", "f", "R", "r0"):
+            a, b = np.asarray(getattr(m.table, name)), np.asarray(getattr(ref.table, name))
+            assert np.abs(a - b).max() < 1e-5 * np.abs(b).max(), (t, name)
+        assert float(m.carriage.preload_force) == pytest.approx(
+            float(ref.carriage.preload_force), rel=1e-12)
+
+
+def test_structure_estimated_on_bundled_like_data(case):
+    """Noise-free data from the finer mesh at 50 mm / 8 %: the thickness comes back within its
+    2σ and the profiles within 10 % (5.1 % measured: the fit's coarser mesh is matched by a
+    slightly different equivalent thickness, and the undetermined preload stays at its prior)."""
+    mk, machine, meas, _ = case
+    fit = fit_rails(_family(machine, meas), meas)
+    assert fit.converged
+    th = fit.structure["thickness"]
+    assert abs(th["value"] - 0.05) <= 2 * th["sigma"] + 1e-4
+    assert th["determined"]
+    report = identifiability(fit, machine)
+    _assert_within_rms(fit, mk, _determined_grid(fit, report), 0.10)
+
+
+def test_fixed_lambda_and_bounded_effective_parameters(case):
+    """``lam=`` is honoured (no NaN anywhere) and 0 <= edf <= unknowns for λ over 12 decades."""
+    _, machine, meas, fit = case
+    for lam in (1e-9, 1e-3, 1e3):
+        f = fit_rails(machine, meas, lam=lam)
+        assert f.lam == lam and f.weight.criterion == "fixed"
+        assert 0 <= f.edf <= f.jacobian.shape[1] + 1e-9
+        assert np.all(np.isfinite(f.cov)) and np.isfinite(f.chi2_dof)
+        rep = identifiability(f, machine)
+        assert np.isfinite(rep["regularisation"]["effective_parameters"])
 
 
 def test_basis_penalty_and_gauge():

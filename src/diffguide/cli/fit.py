@@ -49,6 +49,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--lambda", dest="lam", type=float, default=None,
                    help="fixed smoothness weight instead of the chosen one (whitened units, as "
                    "report.json's 'lambda')")
+    p.add_argument("--max-steps", type=int, default=60,
+                   help="Levenberg-Marquardt step limit per pass (default 60); when it is reached "
+                   "the best estimate so far is written, flagged as not converged (exit 3)")
     p.add_argument("--criterion", choices=("ml", "gcv"), default="ml",
                    help="how the smoothness weight is chosen: marginal likelihood (default) or "
                    "generalised cross-validation")
@@ -115,6 +118,8 @@ def _check_inputs(meas, args, cfg):
         raise ValueError(f"{meas.source}: at least 4 distinct positions are needed for a fit")
     if args.knot_spacing_mm is not None and not (1.0 <= args.knot_spacing_mm <= 1000.0):
         raise ValueError(f"--knot-spacing-mm must be in [1, 1000] mm, got {args.knot_spacing_mm}")
+    if not 0 <= args.max_steps <= 10000:
+        raise ValueError(f"--max-steps must be an integer in [0, 10000], got {args.max_steps}")
     if args.lam is not None and not (np.isfinite(args.lam) and args.lam > 0):
         raise ValueError(f"--lambda must be a finite number > 0, got {args.lam}")
     for name in ("nx", "ny"):
@@ -329,7 +334,8 @@ def run(args) -> int:
         t = time.perf_counter()
         _say(args, f"{'rigid-table' if label else 'elastic'} fit: compiling and solving ...")
         fits[label] = fit_rails(m, meas, knot_spacing=spacing, lam=args.lam,
-                                criterion=args.criterion, method="linear" if label else "lm")
+                                criterion=args.criterion, max_steps=args.max_steps,
+                                method="linear" if label else "lm")
         seconds[label] = time.perf_counter() - t
         f = fits[label]
         _say(args, f"{'rigid-table' if label else 'elastic'} fit: chi2/dof = {f.chi2_dof:.3f} "

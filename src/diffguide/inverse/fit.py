@@ -295,6 +295,21 @@ def _lead_basis(meas: Measurements):
     return B, (basis.start, basis.spacing, basis.n_coeffs)
 
 
+def _problem(family: MachineFamily, meas: Measurements, basis: RailBasis, lead_B, x_ref):
+    positions, pos_idx = np.unique(np.round(meas.position, 9), return_inverse=True)
+    chan = meas.channel_index()
+    return _Problem(
+        family=family, positions=jnp.asarray(positions),
+        pos_idx=jnp.asarray(pos_idx), pt_idx=jnp.asarray(meas.point),
+        q_idx=jnp.asarray(meas.quantity), value=jnp.asarray(meas.value),
+        sigma=jnp.asarray(meas.sigma), weight=jnp.ones(meas.n), z=jnp.asarray(meas.z),
+        lead=jnp.asarray(lead_B), chan=jnp.asarray(chan),
+        prior_sigma=jnp.asarray(family.prior_sigma()), x_ref=jnp.asarray(float(x_ref)),
+        start=basis.start, spacing=basis.spacing, n_coeffs=basis.n_coeffs,
+        n_chan=int(chan.max()) + 1, n_q=family.n_params,
+    )
+
+
 def _as_family(machine) -> MachineFamily:
     if isinstance(machine, MachineFamily):
         return machine
@@ -362,19 +377,8 @@ def fit_rails(
     lead_B, lead_basis = _lead_basis(meas)
     n_theta, n_q, n_l = Z.shape[1], family.n_params, lead_B.shape[1]
     n_x = n_theta + n_q + n_l
-    positions, pos_idx = np.unique(np.round(meas.position, 9), return_inverse=True)
-    chan = meas.channel_index()
-    n_chan = int(chan.max()) + 1
-    prob = _Problem(
-        family=family, positions=jnp.asarray(positions),
-        pos_idx=jnp.asarray(pos_idx), pt_idx=jnp.asarray(meas.point),
-        q_idx=jnp.asarray(meas.quantity), value=jnp.asarray(meas.value),
-        sigma=jnp.asarray(meas.sigma), weight=jnp.ones(meas.n), z=jnp.asarray(meas.z),
-        lead=jnp.asarray(lead_B), chan=jnp.asarray(chan),
-        prior_sigma=jnp.asarray(family.prior_sigma()), x_ref=jnp.asarray(float(x_ref)),
-        start=basis.start, spacing=basis.spacing, n_coeffs=basis.n_coeffs, n_chan=n_chan,
-        n_q=n_q,
-    )
+    prob = _problem(family, meas, basis, lead_B, x_ref)
+    n_chan, chan = prob.n_chan, meas.channel_index()
     M = np.zeros((basis.size + n_q + n_l, n_x))  # v = M x
     M[:basis.size, :n_theta] = Z
     M[basis.size:, n_theta:] = np.eye(n_q + n_l)
