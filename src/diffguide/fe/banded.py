@@ -68,45 +68,47 @@ class BlockLayout(eqx.Module):
     offsets: tuple[int, int, int, int] = eqx.field(static=True)
     n_entries: int = eqx.field(static=True)
 
-    @property
-    def index_dtype(self):
-        return np.int32 if self.n_entries < 2**31 - 1 else np.int64
-
-    def _dofs(self, conn: np.ndarray):
-        """Per element DOF (n_el, 6k): slave flag, block, in-block index, interface index."""
-        conn = np.asarray(conn)
-        node = np.repeat(conn, 6, axis=1)
-        d = np.tile(np.arange(6), conn.shape[1])
-        own = self.owner[node]
-        blk = self.node_block[node]
-        if np.any(np.abs(np.diff(blk[:, ::6], axis=1)) > 1):
+    def check(self, conn: np.ndarray) -> None:
+        """``ValueError`` unless every element of ``conn`` (n_el, k) spans at most two
+        neighbouring blocks (true on a tensor grid)."""
+        blk = self.node_block[np.asarray(conn)]
+        if np.any(blk.max(axis=1) - blk.min(axis=1) > 1):
             raise ValueError("an element joins nodes more than one block apart: not a tensor grid")
-        return own >= 0, blk, 6 * self.node_pos[node] + d, 6 * np.maximum(own, 0) + d
 
-    def matrix_index(self, conn: np.ndarray) -> np.ndarray:
+    def _dofs(self, conn):
+        """Per element DOF (n_el, 6k): slave flag, block, in-block index, interface index."""
+        node = jnp.repeat(jnp.asarray(conn), 6, axis=1)
+        d = jnp.tile(jnp.arange(6), conn.shape[1])
+        own = jnp.asarray(self.owner)[node]
+        blk = jnp.asarray(self.node_block)[node]
+        loc = 6 * jnp.asarray(self.node_pos)[node] + d
+        return own >= 0, blk, loc, 6 * jnp.maximum(own, 0) + d
+
+    def matrix_index(self, conn) -> Array:
         """Flat target (n_el, 6k, 6k) of each element-matrix entry in ``[D, C, K_ib, K_bb]``
-        (raveled, concatenated); ``n_entries`` (dropped) for the entries the symmetric storage
-        does not keep (upper block ``C^T`` and interface–interior ``K_bi``)."""
+        (raveled, concatenated); ``n_entries`` (out of range: dropped) for the entries the
+        symmetric storage does not keep (upper block ``C^T`` and interface–interior ``K_bi``).
+        Integer arithmetic on the connectivity, traceable (it runs inside the compiled
+        condensation)."""
         sl, blk, loc, bi = self._dofs(conn)
         s, m = self.block_size, self.m
         oD, oC, oB, oBB = self.offsets
         r = lambda a: a[:, :, None]
         c = lambda a: a[:, None, :]
         ii = ~r(sl) & ~c(sl)
-        idx = np.full((conn.shape[0], sl.shape[1], sl.shape[1]), self.n_entries, np.int64)
-        idx = np.where(ii & (r(blk) == c(blk)), oD + (r(blk) * s + r(loc)) * s + c(loc), idx)
-        idx = np.where(ii & (r(blk) == c(blk) + 1), oC + (c(blk) * s + r(loc)) * s + c(loc), idx)
-        idx = np.where(~r(sl) & c(sl), oB + (r(blk) * s + r(loc)) * m + c(bi), idx)
-        idx = np.where(r(sl) & c(sl), oBB + r(bi) * m + c(bi), idx)
-        return idx.astype(self.index_dtype)
+        idx = jnp.where(ii & (r(blk) == c(blk)), oD + (r(blk) * s + r(loc)) * s + c(loc), -1)
+        idx = jnp.where(ii & (r(blk) == c(blk) + 1), oC + (c(blk) * s + r(loc)) * s + c(loc), idx)
+        idx = jnp.where(~r(sl) & c(sl), oB + (r(blk) * s + r(loc)) * m + c(bi), idx)
+        idx = jnp.where(r(sl) & c(sl), oBB + r(bi) * m + c(bi), idx)
+        return jnp.where(idx < 0, self.n_entries, idx)
 
-    def vector_index(self, conn: np.ndarray) -> np.ndarray:
+    def vector_index(self, conn) -> Array:
         """Flat target (n_el, 6k) of each element-vector entry in ``[f_i (n_b s), f_b (m)]``."""
         sl, blk, loc, bi = self._dofs(conn)
         s = self.block_size
-        return np.where(sl, self.n_blocks * s + bi, blk * s + loc).astype(self.index_dtype)
+        return jnp.where(sl, self.n_blocks * s + bi, blk * s + loc)
 
-    def node_index(self) -> np.ndarray:
+    def node_index(self):
         """(n_nodes,) row of each node in the interior solution reshaped (n_b · nper, 6, ·)."""
         return self.node_block * (self.block_size // 6) + self.node_pos
 
@@ -149,9 +151,9 @@ def assemble_blocks(layout: BlockLayout, parts):
 
     Args:
         layout: the :class:`BlockLayout`.
-        parts: iterable of ``(Ke, fe, mat_index, vec_index)``: element matrices (n_el, k, k) and
-            vectors (n_el, k) in the interface-reduced DOF, with their targets
-            (:meth:`BlockLayout.matrix_index`, :meth:`BlockLayout.vector_index`).
+        parts: iterable of ``(conn, Ke, fe)``: element connectivity (n_el, n), element matrices
+            (n_el, 6n, 6n) and vectors (n_el, 6n) in the interface-reduced DOF (slave nodes'
+            DOF already mapped to their patch's reference point).
 
     Returns:
         ``D`` (n_b, s, s) with identity rows/columns at slave DOF, ``C`` (n_b - 1, s, s),
@@ -159,12 +161,12 @@ def assemble_blocks(layout: BlockLayout, parts):
     """
     nb, s, m = layout.n_blocks, layout.block_size, layout.m
     buf, fbuf = None, None
-    for Ke, fe, mi, vi in parts:
+    for conn, Ke, fe in parts:
         if buf is None:
             buf = jnp.zeros(layout.n_entries, Ke.dtype)
             fbuf = jnp.zeros(nb * s + m, fe.dtype)
-        buf = buf.at[mi.ravel()].add(Ke.ravel(), mode="drop")
-        fbuf = fbuf.at[vi.ravel()].add(fe.ravel())
+        buf = buf.at[layout.matrix_index(conn).ravel()].add(Ke.ravel(), mode="drop")
+        fbuf = fbuf.at[layout.vector_index(conn).ravel()].add(fe.ravel())
     oD, oC, oB, oBB = layout.offsets
     D = buf[oD:oC].reshape(nb, s, s)
     D = D + jnp.asarray(layout.slave_dof, D.dtype)[:, :, None] * jnp.eye(s, dtype=D.dtype)

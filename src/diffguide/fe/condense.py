@@ -229,11 +229,11 @@ def condense(
         )
     pts = np.array(points, dtype=float).reshape(-1, 2)
     if method == "dense":
-        layout = index = None
+        layout = None
     elif method == "banded":
         layout = banded.block_layout(len(mesh.xs), len(mesh.ys), owner, len(patches))
-        conns = [mesh.quads] + ([mesh.beams] if mesh.beams.shape[0] > 0 else [])
-        index = [(layout.matrix_index(c), layout.vector_index(c)) for c in conns]
+        for conn in (mesh.quads, mesh.beams):
+            layout.check(conn)
     else:
         raise ValueError(f"method must be 'banded' or 'dense', got {method!r}")
     return _condense(
@@ -250,7 +250,6 @@ def condense(
         pxyz,
         pts,
         layout,
-        index,
     )
 
 
@@ -269,7 +268,6 @@ def _condense(
     pxyz,
     pts,
     layout=None,
-    index=None,
 ):
     xyz = jnp.asarray(mesh.nodes if nodes is None else nodes, dtype=float)
     t = jnp.asarray(plate.thickness, dtype=float)
@@ -306,9 +304,7 @@ def _condense(
         fc = f[n_i:] - Kib.T @ X[:, m]
         Xn = X.reshape(-1, 6, m + 1)[block]  # interior rows per node (slave rows: garbage)
     else:  # block-tridiagonal interior (all nodes, slave DOF decoupled), see .banded
-        D, C, Kib, Kbb, fi, fb = banded.assemble_blocks(
-            layout, [(Ke, fe, mi, vi) for (_, Ke, fe), (mi, vi) in zip(parts, index)]
-        )
+        D, C, Kib, Kbb, fi, fb = banded.assemble_blocks(layout, parts)
         X = banded.spd_solve(D, C, jnp.concatenate([Kib, fi[:, :, None]], axis=2))
         Kc = Kbb - jnp.einsum("nim,nik->mk", Kib, X[:, :, :m])
         fc = fb - jnp.einsum("nim,ni->m", Kib, X[:, :, m])
