@@ -17,9 +17,9 @@ jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from diffguide.kinematics import joint_errors  # noqa: E402
-from diffguide.majda2012 import majda2012_machine, paper_variant  # noqa: E402
-from diffguide.rails import SplineRail  # noqa: E402
+from diffguide.guideway.rails import SplineRail  # noqa: E402
+from diffguide.machine.kinematics import joint_errors  # noqa: E402
+from diffguide.machine.majda2012 import majda2012_machine, paper_variant  # noqa: E402
 
 REPEATS = 15
 

@@ -1,4 +1,4 @@
-"""Benchmark: batched Monte Carlo sweeps (``diffguide.montecarlo.batched_sweep``; not a test).
+"""Benchmark: batched Monte Carlo sweeps (``diffguide.batched_sweep``; not a test).
 
 Random rails (σ = 5 µm, ℓ = 200 mm, both rails and planes) on the ``majda2012`` machine, a sweep
 of ``--positions`` table positions over the ±350 mm stroke (+ the reference position), in chunks
@@ -32,9 +32,9 @@ def _measure(args) -> dict:
     import numpy as np
 
     jax.config.update("jax_enable_x64", True)
-    from diffguide.majda2012 import majda2012_machine
-    from diffguide.montecarlo import batched_sweep
-    from diffguide.random_rails import GaussianRailModel, sample_rails
+    from diffguide.machine.majda2012 import majda2012_machine
+    from diffguide.studies.montecarlo import batched_sweep
+    from diffguide.studies.random_rails import GaussianRailModel, sample_rails
 
     nx, ny = (int(v) for v in args.mesh.split("x"))
     machine = majda2012_machine(nx=nx, ny=ny)

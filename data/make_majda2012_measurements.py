@@ -60,10 +60,10 @@ def truth_profile(s, rail: int, plane: str) -> np.ndarray:
 
 
 def truth_rails():
-    """The truth as a pair of rail profiles for :func:`diffguide.kinematics.joint_errors`."""
+    """The truth as a pair of rail profiles for :func:`diffguide.joint_errors`."""
     import jax.numpy as jnp
 
-    from diffguide.rails import AbstractRailProfile
+    from diffguide.guideway.rails import AbstractRailProfile
 
     class TruthRail(AbstractRailProfile):
         rail: int
@@ -94,8 +94,8 @@ def positions_mm() -> np.ndarray:
 
 def simulate(machine=None) -> np.ndarray:
     """Noise-free joint errors ``(n_pos, n_points, 6)`` (SI) of the truth on the fine mesh."""
-    from diffguide.kinematics import joint_errors
-    from diffguide.majda2012 import majda2012_machine
+    from diffguide.machine.kinematics import joint_errors
+    from diffguide.machine.majda2012 import majda2012_machine
 
     if machine is None:
         machine = majda2012_machine(nx=FINE_MESH[0], ny=FINE_MESH[1], points=points())

@@ -12,8 +12,8 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 from diffguide.io import atomic_savefig  # noqa: E402
-from diffguide.kinematics import joint_errors  # noqa: E402
-from diffguide.majda2012 import majda2012_machine, paper_variant  # noqa: E402
+from diffguide.machine.kinematics import joint_errors  # noqa: E402
+from diffguide.machine.majda2012 import majda2012_machine, paper_variant  # noqa: E402
 from diffguide.plotting.errors import plot_joint_errors  # noqa: E402
 
 machine = majda2012_machine()

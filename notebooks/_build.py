@@ -44,8 +44,8 @@ jax.config.update("jax_enable_x64", True)  # micrometres on metre-scale geometry
 import numpy as np
 import matplotlib.pyplot as plt
 plt.rcParams["figure.dpi"] = 60  # keep the committed outputs small
-from diffguide.majda2012 import majda2012_machine, paper_variant
-from diffguide.kinematics import joint_errors, ERROR_NAMES
+from diffguide.machine.majda2012 import majda2012_machine, paper_variant
+from diffguide.machine.kinematics import joint_errors, ERROR_NAMES
 from diffguide.plotting.errors import plot_joint_errors
 
 machine = majda2012_machine()            # 1000 x 500 x 50 mm cast-iron plate, 4 size-25 ball blocks
@@ -147,7 +147,7 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np
 import matplotlib.pyplot as plt
 plt.rcParams["figure.dpi"] = 60
-from diffguide.majda2012 import majda2012_machine
+from diffguide.machine.majda2012 import majda2012_machine
 from diffguide.measurements import read_measurements
 from diffguide.inverse import fit_rails, identifiability
 from diffguide.plotting.fit import plot_profiles

@@ -29,10 +29,11 @@ asks a tolerance question of the `majda2012` machine:
 
 "Roll difference" here is, per machine, the largest `|EAX_i(x) − EAX_j(x)|` over the 700 mm stroke
 and over all pairs of the four corner points P1–P4. Each "machine" is a draw of random rails
-(`diffguide.random_rails`): every rail, in both planes, is a stationary Gaussian process with RMS
-`σ` and a squared-exponential correlation of length `ℓ`, `k(τ) = σ² exp(−τ²/2ℓ²)`; rail 2 may in
-addition be mounted out of parallel / out of height within a catalogue class. The sweeps run
-batched and compiled (`diffguide.montecarlo.batched_sweep`).
+(`diffguide.studies.random_rails`): every rail, in both planes, is a stationary Gaussian
+process with RMS `σ` and a squared-exponential correlation of length `ℓ`,
+`k(τ) = σ² exp(−τ²/2ℓ²)`; rail 2 may in addition be mounted out of parallel / out of height
+within a catalogue class. The sweeps run batched and compiled
+(`diffguide.studies.montecarlo.batched_sweep`).
 """),
     code(r"""
 import jax
@@ -41,10 +42,10 @@ jax.config.update("jax_enable_x64", True)  # micrometres on metre-scale geometry
 import time
 import numpy as np
 import matplotlib.pyplot as plt
-from diffguide.majda2012 import majda2012_machine
-from diffguide.montecarlo import batched_sweep
-from diffguide.random_rails import GaussianRailModel, MOUNTING_CLASSES, sample_rails
-from diffguide.rails import bspline_matrix
+from diffguide.machine.majda2012 import majda2012_machine
+from diffguide.studies.montecarlo import batched_sweep
+from diffguide.studies.random_rails import GaussianRailModel, MOUNTING_CLASSES, sample_rails
+from diffguide.guideway.rails import bspline_matrix
 from diffguide.plotting.montecarlo import plot_monte_carlo
 %matplotlib inline
 

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from diffguide.cli import main
-from diffguide.compensation import compensation_table, location_warnings, non_rigid_part
-from diffguide.kinematics import joint_errors
-from diffguide.majda2012 import majda2012_machine, paper_variant
+from diffguide.machine.kinematics import joint_errors
+from diffguide.machine.majda2012 import majda2012_machine, paper_variant
+from diffguide.studies.compensation import compensation_table, location_warnings, non_rigid_part
 
 X = np.linspace(-0.35, 0.35, 15)
 

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from diffguide.build import build_machine
 from diffguide.cli import main
-from diffguide.config import default_config, dump_config, load_config
-from diffguide.kinematics import joint_errors
-from diffguide.majda2012 import majda2012_machine, paper_variant
+from diffguide.io.config import default_config, dump_config, load_config
+from diffguide.machine.build import build_machine
+from diffguide.machine.kinematics import joint_errors
+from diffguide.machine.majda2012 import majda2012_machine, paper_variant
 
 
 def test_dump_load_round_trip(tmp_path):

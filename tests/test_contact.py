@@ -7,7 +7,7 @@ import pytest
 from scipy import optimize, special
 
 from diffguide.contact import HertzBall, PalmgrenRoller, RivinBall
-from diffguide.hertz import hamrock_brewe, point_contact
+from diffguide.contact.hertz import hamrock_brewe, point_contact
 
 E, NU = 210e9, 0.3
 E_STAR = E / (2 * (1 - NU**2))  # two steel bodies

@@ -5,12 +5,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from diffguide.carriage_solve import (
-    TRANSLATION_ONLY,
-    rail_under,
-    solve_carriage,
-    static_characteristics,
-)
 from diffguide.contact import HertzBall, PalmgrenRoller
 from diffguide.guideway import (
     Carriage,
@@ -19,7 +13,13 @@ from diffguide.guideway import (
     majda2012_carriage,
     roller25_carriage,
 )
-from diffguide.rails import SinusoidalRail
+from diffguide.guideway.rails import SinusoidalRail
+from diffguide.guideway.solve import (
+    TRANSLATION_ONLY,
+    rail_under,
+    solve_carriage,
+    static_characteristics,
+)
 
 
 def two_opposed_rows(law, n=10, pitch=4e-3, per_element=40.0):

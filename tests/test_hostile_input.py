@@ -7,8 +7,8 @@ import string
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from diffguide.config import load_config
 from diffguide.io import read_rails_csv
+from diffguide.io.config import load_config
 
 LOCATED = re.compile(r"^\S+\.(csv|toml)(:\d+)?: ")
 

@@ -6,10 +6,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from diffguide.kinematics import joint_errors
+from diffguide.guideway.rails import SinusoidalRail, SplineRail, StraightRail
 from diffguide.machine import equilibrium, point_motion
-from diffguide.majda2012 import majda2012_machine, paper_variant
-from diffguide.rails import SinusoidalRail, SplineRail, StraightRail
+from diffguide.machine.kinematics import joint_errors
+from diffguide.machine.majda2012 import majda2012_machine, paper_variant
 
 POSITIONS = np.linspace(-0.35, 0.35, 71)
 CORNERS = slice(0, 4)  # P1..P4; P5 (index 4) is the centre
@@ -222,7 +222,7 @@ def test_error_field_at_the_control_points_equals_their_errors(machine):
     # two routes to the same numbers: the condensed point-recovery rows R (bilinear shell
     # interpolation at the points) and the node field from the interior solution; the preset
     # puts grid lines through the control points, so each point is a node
-    from diffguide.kinematics import error_field
+    from diffguide.machine.kinematics import error_field
 
     je = joint_errors(machine, paper_variant(3), POSITIONS[:5])
     xy, field = error_field(machine, je, 0)

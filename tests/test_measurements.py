@@ -4,10 +4,10 @@ import math
 
 import numpy as np
 import pytest
+from diffguide.kinematics import ERROR_NAMES
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from diffguide.kinematics import ERROR_NAMES
 from diffguide.measurements import (
     MIN_SCATTER_DOF,
     QUANTITIES,

@@ -12,16 +12,16 @@ import textwrap
 import numpy as np
 import pytest
 
-from diffguide.kinematics import joint_errors
-from diffguide.majda2012 import majda2012_machine
-from diffguide.montecarlo import (
+from diffguide.machine.kinematics import joint_errors
+from diffguide.machine.majda2012 import majda2012_machine
+from diffguide.studies.montecarlo import (
     MonteCarloResult,
     batched_sweep,
     default_corners,
     split_cpu_into_devices,
     stack_machines,
 )
-from diffguide.random_rails import (
+from diffguide.studies.random_rails import (
     GaussianRailModel,
     RailBatch,
     default_knots,
@@ -152,10 +152,10 @@ _SHARDED = textwrap.dedent(
     """
     import jax, numpy as np
     jax.config.update("jax_enable_x64", True)
-    from diffguide.montecarlo import batched_sweep, split_cpu_into_devices
+    from diffguide.studies.montecarlo import batched_sweep, split_cpu_into_devices
     assert split_cpu_into_devices(2)  # before the first array
-    from diffguide.majda2012 import majda2012_machine
-    from diffguide.random_rails import GaussianRailModel, sample_rails
+    from diffguide.machine.majda2012 import majda2012_machine
+    from diffguide.studies.random_rails import GaussianRailModel, sample_rails
     assert len(jax.devices()) == 2, jax.devices()
     m = majda2012_machine(nx=10, ny=5)
     b = sample_rails(5, 5, GaussianRailModel(5e-6, 0.2), "size25-ZB")

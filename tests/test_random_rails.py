@@ -4,8 +4,8 @@ mounting classes stay within their tolerances, lines are exact, draws are reprod
 import numpy as np
 import pytest
 
-from diffguide.rails import SplineRail, bspline_matrix
-from diffguide.random_rails import (
+from diffguide.guideway.rails import SplineRail, bspline_matrix
+from diffguide.studies.random_rails import (
     MOUNTING_CLASSES,
     GaussianRailModel,
     MountingTolerance,

@@ -10,11 +10,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from diffguide.build import build_machine
-from diffguide.config import default_config
+from diffguide.guideway.rails import BumpRail, SinusoidalRail, StraightRail
+from diffguide.io.config import default_config
 from diffguide.machine import equilibrium, rigid_body_map
-from diffguide.majda2012 import majda2012_machine, paper_variant
-from diffguide.rails import BumpRail, SinusoidalRail, StraightRail
+from diffguide.machine.build import build_machine
+from diffguide.machine.majda2012 import majda2012_machine, paper_variant
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +86,7 @@ def test_cli_exits_non_zero_and_writes_nothing_on_failure(tmp_path, capsys, monk
     import equinox as eqx
     import optimistix as optx
 
-    import diffguide.kinematics as kin
+    import diffguide.machine.kinematics as kin
     from diffguide.cli import main
 
     real = kin.joint_errors
@@ -206,7 +206,7 @@ def test_random_machines_large_run(case):
 GUARD = """
 import jax.numpy as jnp
 from diffguide.guideway import majda2012_carriage
-from diffguide.carriage_solve import solve_carriage
+from diffguide.guideway.solve import solve_carriage
 try:
     solve_carriage(majda2012_carriage(), jnp.zeros(6))
 except RuntimeError as exc:

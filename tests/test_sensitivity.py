@@ -6,11 +6,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from diffguide.build import build_machine
-from diffguide.config import default_config
-from diffguide.kinematics import joint_errors
-from diffguide.majda2012 import paper_variant
-from diffguide.sensitivity import (
+from diffguide.io.config import default_config
+from diffguide.machine.build import build_machine
+from diffguide.machine.kinematics import joint_errors
+from diffguide.machine.majda2012 import paper_variant
+from diffguide.studies.sensitivity import (
     CORNERS,
     bump_centres,
     corner_roll,

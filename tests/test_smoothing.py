@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from diffguide.contact import HertzBall, PalmgrenRoller
-from diffguide.smoothing import element_energy, element_force, element_stiffness
+from diffguide.contact.smoothing import element_energy, element_force, element_stiffness
 
 LAWS = [HertzBall(3e-3, 3.03e-3), PalmgrenRoller(6e-3)]
 

@@ -45,7 +45,7 @@ def _glue_negative_ranges(argv: list[str]) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     import matplotlib
 
-    from .._precision import enable_x64
+    from .._core.precision import enable_x64
 
     matplotlib.use("Agg")  # files only: no display needed
     enable_x64()

@@ -13,7 +13,7 @@ def add_machine_arguments(p) -> None:
 
 def machine_config(args) -> dict:
     """The validated configuration chosen by ``--config`` or ``--preset``."""
-    from ..config import default_config, load_config
+    from ..io.config import default_config, load_config
 
     if getattr(args, "config", None):
         return load_config(args.config)

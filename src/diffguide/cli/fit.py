@@ -304,8 +304,8 @@ def _write_dir(out: Path, files: dict[str, object]) -> None:
 
 
 def run(args) -> int:
-    from ..build import build_machine
     from ..inverse import MachineFamily, fit_rails, identifiability
+    from ..machine.build import build_machine
     from ..measurements import read_measurements
     from ._common import machine_config
 
@@ -454,10 +454,10 @@ def _figures(meas, fits, profiles, s_m, truth):
 def _export_compensation(args, cfg, measured_points, fit, family) -> None:
     """The fitted model's errors at ``--at`` over the stroke, as a compensation table, with a
     warning for each point where a rigid-body compensation from ``--at`` would not hold."""
-    from ..build import build_machine
-    from ..compensation import compensation_table, location_warnings
-    from ..io import atomic_write_text
-    from ..kinematics import joint_errors
+    from ..io.files import atomic_write_text
+    from ..machine.build import build_machine
+    from ..machine.kinematics import joint_errors
+    from ..studies.compensation import compensation_table, location_warnings
 
     points = {k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()}
     points.update(measured_points)

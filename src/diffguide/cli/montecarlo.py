@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from ..io import atomic_savefig, atomic_write_text
+from ..io.files import atomic_savefig, atomic_write_text
 from .simulate import parse_mesh, parse_positions
 
 _KERNELS = {"se": "squared_exponential", "matern52": "matern52"}
@@ -18,7 +18,7 @@ _PLANES = {
 
 
 def add_parser(sub) -> None:
-    from ..random_rails import MOUNTING_CLASSES
+    from ..studies.random_rails import MOUNTING_CLASSES
 
     p = sub.add_parser(
         "montecarlo",
@@ -109,7 +109,7 @@ def summary(result) -> str:
     """Percentiles (5, 50, 95 %) of the ranges at each point and of the corner roll differences."""
     ok = result.converged
     lines = ["percentiles over converged samples (5 % / 50 % / 95 %):"]
-    from ..kinematics import ERROR_NAMES, USER_UNITS
+    from ..machine.kinematics import ERROR_NAMES, USER_UNITS
 
     head = "  point " + "".join(f"{n + ' ' + u:>24}" for n, u in zip(ERROR_NAMES, USER_UNITS))
     lines.append(head)
@@ -129,15 +129,15 @@ def summary(result) -> str:
 
 
 def run(args) -> int:
-    from ..montecarlo import split_cpu_into_devices
+    from ..studies.montecarlo import split_cpu_into_devices
 
     _check(args)
     if args.cpu_devices is None or args.cpu_devices > 1:
         split_cpu_into_devices(args.cpu_devices)  # before the first array; no-op afterwards
 
-    from ..majda2012 import STROKE, majda2012_machine
-    from ..montecarlo import batched_sweep
-    from ..random_rails import GaussianRailModel, sample_rails
+    from ..machine.majda2012 import STROKE, majda2012_machine
+    from ..studies.montecarlo import batched_sweep
+    from ..studies.random_rails import GaussianRailModel, sample_rails
 
     positions = parse_positions(args.positions)
     if np.max(np.abs(positions)) > STROKE / 2 + 1e-12:

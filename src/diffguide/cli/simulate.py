@@ -4,7 +4,7 @@ import argparse
 
 import numpy as np
 
-from ..io import atomic_savefig, atomic_write_text
+from ..io.files import atomic_savefig, atomic_write_text
 from ._common import add_machine_arguments, machine_config
 
 
@@ -102,10 +102,10 @@ def parse_mesh(text: str) -> tuple[int, int]:
 def run(args) -> int:
     import sys
 
-    from ..build import build_machine
-    from ..io import read_rails_csv
-    from ..kinematics import ERROR_NAMES, joint_errors
-    from ..majda2012 import paper_variant
+    from ..io.files import read_rails_csv
+    from ..machine.build import build_machine
+    from ..machine.kinematics import ERROR_NAMES, joint_errors
+    from ..machine.majda2012 import paper_variant
 
     cfg = machine_config(args)
     positions = parse_positions(args.positions)
@@ -150,7 +150,7 @@ def run(args) -> int:
     atomic_write_text(args.out, "\n".join(lines) + "\n")
     say(f"wrote {args.out}")
     if args.field_plot:
-        from ..kinematics import error_field
+        from ..machine.kinematics import error_field
         from ..plotting.errors import plot_error_field
 
         k = len(positions) - 1
@@ -165,7 +165,7 @@ def run(args) -> int:
         atomic_savefig(fig, args.field_plot, dpi=100)
         say(f"wrote {args.field_plot}")
     if args.export_compensation:
-        from ..compensation import compensation_table, location_warnings
+        from ..studies.compensation import compensation_table, location_warnings
 
         what = f"rails {args.rails}" if args.rails else f"variant {args.variant}"
         text = compensation_table(

@@ -4,7 +4,7 @@ import argparse
 
 import numpy as np
 
-from ..io import atomic_savefig, atomic_write_text
+from ..io.files import atomic_savefig, atomic_write_text
 
 PRESETS = ("majda2012", "majda2012-rivin", "roller25")
 
@@ -35,7 +35,7 @@ def add_parser(sub) -> None:
 
 
 def carriage_for(preset: str):
-    from ..guideway import majda2012_carriage, roller25_carriage
+    from ..guideway.carriage import majda2012_carriage, roller25_carriage
 
     if preset == "majda2012":
         return majda2012_carriage("hertz")
@@ -47,15 +47,15 @@ def carriage_for(preset: str):
 
 
 def run(args) -> int:
-    from ..carriage_solve import static_characteristics
+    from ..guideway.solve import static_characteristics
 
     if not args.max_load > 0:
         raise ValueError(f"--max-load must be > 0 N, got {args.max_load}")
     if args.steps < 2:
         raise ValueError(f"--steps must be >= 2, got {args.steps}")
     if args.config:
-        from ..build import carriage_from_config
-        from ..config import load_config
+        from ..io.config import load_config
+        from ..machine.build import carriage_from_config
 
         carriage = carriage_from_config(load_config(args.config))
     else:

@@ -30,8 +30,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     import numpy as np
 
-    from ..build import table_from_config
-    from ..io import atomic_write_text
+    from ..io.files import atomic_write_text
+    from ..machine.build import table_from_config
 
     for name in ("nx", "ny"):
         v = getattr(args, name)
@@ -59,7 +59,7 @@ def run(args) -> int:
         atomic_write_text(args.out, "\n".join(lines) + "\n")
         print(f"wrote {args.out}")
     if args.plot:
-        from ..io import atomic_savefig
+        from ..io.files import atomic_savefig
         from ..plotting.table import plot_table
 
         fig = plot_table(model, u, title=f"{name}: sag under gravity on four carriages, "

@@ -20,7 +20,7 @@ vector ``e``, m, the same at both ends) and is tied rigidly to the node:
 
 import jax.numpy as jnp
 
-from .._types import Array, Float, ScalarLike
+from .._core.types import Array, Float, ScalarLike
 
 
 def beam_frame(xyz: Float[Array, "2 3"]) -> tuple[Float[Array, "3 3"], Float[Array, ""]]:

@@ -8,7 +8,7 @@ A :class:`Material` holds Young's modulus ``E`` (Pa), Poisson's ratio ``nu`` (-)
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array, ScalarLike
+from .._core.types import Array, ScalarLike
 
 
 def _is_concrete_number(x) -> bool:

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import equinox as eqx
 import numpy as np
 
-from .._types import ScalarLike
+from .._core.types import ScalarLike
 from .materials import Material
 
 

@@ -29,7 +29,7 @@ import math
 import jax
 import jax.numpy as jnp
 
-from .._types import Array, Float, ScalarLike
+from .._core.types import Array, Float, ScalarLike
 
 _G = 1.0 / math.sqrt(3.0)
 _GAUSS = ((-_G, -_G), (_G, -_G), (_G, _G), (-_G, _G))

@@ -59,7 +59,7 @@ def plot_error_field(xy, field_user, title="", components=(2, 3, 4)):
 
     Arguments:
         xy: (n_nodes, 2) node positions (m). field_user: (n_nodes, 6) errors in µm / µrad
-            (:func:`diffguide.kinematics.error_field` scaled). components: indices into
+            (:func:`diffguide.machine.kinematics.error_field` scaled). components: indices into
             EXX … ECX (default EZX, roll, pitch).
     """
     xy = np.asarray(xy) * 1e3

@@ -15,7 +15,7 @@ def plot_monte_carlo(result, title: str = "", quantile: float = 0.95):
     ``quantile`` marked.
 
     Arguments:
-        result: a :class:`diffguide.montecarlo.MonteCarloResult`.
+        result: a :class:`diffguide.studies.montecarlo.MonteCarloResult`.
         title: figure title. quantile: marked on the last panel (0.95).
     Returns:
         the matplotlib ``Figure``.

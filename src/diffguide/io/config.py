@@ -4,7 +4,7 @@ A configuration is a nested mapping ``{section: {key: value}}``. :data:`SCHEMA` 
 with its default (the ``majda2012`` preset), its kind and its allowed range; a file only needs the
 keys it changes. :func:`load_config` reads and validates a file — every error names the file, the
 key and the allowed range, in one line — and :func:`dump_config` writes one (``diffguide config
---preset majda2012 > machine.toml``). :func:`diffguide.build.build_machine` turns a configuration
+--preset majda2012 > machine.toml``). :func:`diffguide.build_machine` turns a configuration
 into a :class:`~diffguide.machine.Machine`.
 
 Units: mm, µm, GPa, N, kg/m³, degrees, as the key names say; converted to SI by the builder.
@@ -15,7 +15,7 @@ import os
 import tomllib
 from pathlib import Path
 
-from .presets import MAJDA2012_LAYOUT, MAJDA2012_POINTS, MAJDA2012_TABLE
+from ..presets import MAJDA2012_LAYOUT, MAJDA2012_POINTS, MAJDA2012_TABLE
 
 _INF = math.inf
 

@@ -17,9 +17,9 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ._types import Array, Float
-from .machine import Machine, equilibrium, point_motion
-from .rails import AbstractRailProfile
+from .._core.types import Array, Float
+from ..guideway.rails import AbstractRailProfile
+from .equilibrium import Machine, equilibrium, point_motion
 
 ERROR_NAMES = ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX")
 #: SI → user units: µm for the translations, µrad (µm/m) for the rotations.
@@ -111,7 +111,7 @@ def error_field(machine: Machine, errors: JointErrors, index: int):
         ``(xy, field)``: node positions on the table (m), ``(n_nodes, 2)``, and their errors
         ``(n_nodes, 6)`` (m, rad), ordered as :data:`ERROR_NAMES`.
     """
-    from .machine import node_motion
+    from .equilibrium import node_motion
 
     half_t = -machine.table.ref_points[0, 2]  # the carriage patches sit on the underside
     offset = jnp.array([0.0, 0.0, 1.0]) * half_t

@@ -8,7 +8,7 @@ point of the convex potential :math:`Π(q) = \sum_j φ(a_j(q)) - W·q`):
 .. math::  R(q) = \sum_j F(a_j(q))\,G_j + W = 0,
 
 solved by Newton with a line search on Π in scaled unknowns (µm, µrad)
-(:mod:`diffguide._newton`). Derivatives with respect to the load, the carriage parameters
+(:mod:`diffguide._core.newton`). Derivatives with respect to the load, the carriage parameters
 (preload, law) and the rail deviation come from implicit differentiation
 (``optimistix.ImplicitAdjoint``), never from unrolled Newton iterations.
 """
@@ -18,10 +18,10 @@ import jax
 import jax.numpy as jnp
 import optimistix as optx
 
-from ._newton import solve_equilibrium
-from ._precision import require_x64
-from ._types import Array, Float, Int
-from .guideway import Carriage
+from .._core.newton import solve_equilibrium
+from .._core.precision import require_x64
+from .._core.types import Array, Float, Int
+from .carriage import Carriage
 
 #: Scale of the unknowns: µm and µrad.
 POSE_SCALE = 1e-6
@@ -141,7 +141,7 @@ def solve_carriage(
 
 def rail_under(carriage: Carriage, profile, position: float | Float[Array, ""]):
     """Rail deviation ``(e_y, e_z)`` (m) under the elements of a carriage centred at ``position``
-    (m) on a rail with ``profile`` (:class:`~diffguide.rails.AbstractRailProfile`)."""
+    (m) on a rail with ``profile`` (:class:`~diffguide.guideway.rails.AbstractRailProfile`)."""
     ey, ez = profile(position + jnp.asarray(carriage.xi, dtype=float))
     return jnp.stack([ey, ez], axis=-1)
 

@@ -14,7 +14,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Float, ScalarLike
+from .._core.types import Array, Float, ScalarLike
 
 _PLANES = ("vertical", "horizontal")
 

@@ -14,9 +14,9 @@ Rail 1 is the rail at −Y. The rail coordinate ``s`` is measured along each rai
 under the table centre at the reference position (x = 0).
 """
 
+from ..guideway.rails import AbstractRailProfile, PaperPolynomialRail, StraightRail
 from .build import build_machine
-from .machine import Machine
-from .rails import AbstractRailProfile, PaperPolynomialRail, StraightRail
+from .equilibrium import Machine
 
 #: The paper's stroke: X 700 mm, symmetric about the reference position.
 STROKE = 0.7
@@ -42,7 +42,7 @@ def majda2012_machine(
         preload_fraction: preload as a fraction of C (default 0.08); may be traced.
         points: control points ``{name: (x, y)}`` on the table top (m), default P1–P5.
     """
-    from .config import default_config
+    from ..io.config import default_config
 
     if law not in ("hertz", "rivin"):
         raise ValueError(f"law must be 'hertz' or 'rivin', got {law!r}")

@@ -1,8 +1,8 @@
 r"""Batched forward sweeps for tolerance studies: many rail sets through one compiled call.
 
-A batch of rail pairs (:class:`~diffguide.random_rails.RailBatch`, a leading sample axis on
+A batch of rail pairs (:class:`~diffguide.studies.random_rails.RailBatch`, a leading sample axis on
 spline coefficients) and optionally of machines (:func:`stack_machines`) goes through
-:func:`~diffguide.kinematics.joint_errors` vmapped over the samples, in chunks of ``chunk_size``
+:func:`~diffguide.joint_errors` vmapped over the samples, in chunks of ``chunk_size``
 samples (bounded memory; the last chunk is padded, so there is one compile), sharded over the
 given JAX devices when there are several (``jax.shard_map`` over a 1-D ``"samples"`` mesh; each
 device runs its own Newton loops). Per sample, only summary statistics come back unless
@@ -27,9 +27,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._precision import require_x64
-from .kinematics import ERROR_NAMES, USER_UNITS, joint_errors
-from .machine import Machine
+from .._core.precision import require_x64
+from ..machine.equilibrium import Machine
+from ..machine.kinematics import ERROR_NAMES, USER_UNITS, joint_errors
 from .random_rails import RailBatch, rails_from_coefficients
 
 _EAX = ERROR_NAMES.index("EAX")
@@ -232,7 +232,7 @@ def batched_sweep(
 ) -> MonteCarloResult:
     """Joint errors of every rail set in ``rails`` over ``positions``, batched, chunked, sharded.
 
-    Each sample is exactly :func:`~diffguide.kinematics.joint_errors` of ``rails.rails(i)``
+    Each sample is exactly :func:`~diffguide.machine.kinematics.joint_errors` of ``rails.rails(i)``
     (same solver, same tolerances), vmapped.
 
     Arguments:

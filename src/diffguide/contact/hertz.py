@@ -21,7 +21,7 @@ geometry (implicit function theorem) as well as in the force.
 import jax
 import jax.numpy as jnp
 
-from ._types import Array, Float, ScalarLike
+from .._core.types import Array, Float, ScalarLike
 
 _AGM_STEPS = 12  # quadratic convergence: 12 steps reach float64 for b/a down to ~1e-30
 _BISECT_STEPS = 80

@@ -22,10 +22,10 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._checks import concrete
-from ._types import Array, Float
-from .contact import AbstractContactLaw, HertzBall, PalmgrenRoller
-from .smoothing import element_energy, element_force, element_stiffness
+from .._core.checks import concrete
+from .._core.types import Array, Float
+from ..contact.laws import AbstractContactLaw, HertzBall, PalmgrenRoller
+from ..contact.smoothing import element_energy, element_force, element_stiffness
 
 
 def _concrete_positive(name, value, unit):
@@ -274,7 +274,7 @@ def majda2012_carriage(law: str = "hertz") -> Carriage:
     Arguments:
         law: ``"hertz"`` (full elliptic Hertz theory) or ``"rivin"`` (the paper's eq. 1).
     """
-    from .contact import RivinBall
+    from ..contact.laws import RivinBall
 
     laws = {"hertz": HertzBall(3e-3, 3.03e-3, 210e9, 0.3), "rivin": RivinBall(3e-3, 3.03e-3)}
     if law not in laws:

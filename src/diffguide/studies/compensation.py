@@ -19,7 +19,7 @@ compensates by moving by their negatives.
 
 import numpy as np
 
-from .kinematics import ERROR_NAMES
+from ..machine.kinematics import ERROR_NAMES
 
 _UNITS = ("um", "um", "um", "urad", "urad", "urad")
 

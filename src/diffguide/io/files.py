@@ -59,7 +59,7 @@ def read_rails_csv(path: str | os.PathLike, *, spacing: float | None = None):
 
     ``rail`` is 1 (at −Y) or 2 (at +Y); each rail needs at least 4 distinct ``s_mm``; a rail
     absent from the file is straight. Each rail is interpolated by a C² cubic B-spline
-    (:meth:`diffguide.rails.SplineRail.fit`) and continued smoothly beyond its samples.
+    (:meth:`diffguide.guideway.rails.SplineRail.fit`) and continued smoothly beyond its samples.
 
     Returns:
         ``(rail1, rail2)`` profiles (SI inside).
@@ -70,7 +70,7 @@ def read_rails_csv(path: str | os.PathLike, *, spacing: float | None = None):
     import csv
     import math
 
-    from .rails import SplineRail, StraightRail
+    from ..guideway.rails import SplineRail, StraightRail
 
     path = Path(path)
     required = ("rail", "s_mm", "vertical_um", "horizontal_um")

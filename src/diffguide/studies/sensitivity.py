@@ -8,13 +8,13 @@ mean roll at that position,
 
 A rigid table gives ``D = 0`` (every point rolls alike); the elastic table's ``D`` is the roll a
 level at one corner cannot see at the others (SPEC §1). ``D`` is smooth in everything the model
-is smooth in, so ``jax.grad``/``jax.jvp`` through :func:`diffguide.build.build_machine` and
-:func:`diffguide.kinematics.joint_errors` give its derivatives (implicit differentiation of the
+is smooth in, so ``jax.grad``/``jax.jvp`` through :func:`diffguide.build_machine` and
+:func:`diffguide.joint_errors` give its derivatives (implicit differentiation of the
 equilibrium).
 
 *Influence map* — the roll at each corner and table position caused by a unit bump on a rail:
 ``∂E_AX,c(x_i)/∂c_k`` for the B-spline coefficients ``c_k`` of a
-:class:`~diffguide.rails.SplineRail`, by forward mode (:func:`jax.jacfwd`; never ``jacrev``
+:class:`~diffguide.guideway.rails.SplineRail`, by forward mode (:func:`jax.jacfwd`; never ``jacrev``
 here, see PITFALLS). Units rad/m = µrad per µm of coefficient (a coefficient of 1 µm is a bump
 of peak 2/3 µm centred at ``s₀ + (k−1)h``, ``4h`` wide at its base).
 """
@@ -26,10 +26,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Float
-from .kinematics import ERROR_NAMES, JointErrors, joint_errors
-from .machine import Machine
-from .rails import SplineRail
+from .._core.types import Array, Float
+from ..guideway.rails import SplineRail
+from ..machine.equilibrium import Machine
+from ..machine.kinematics import ERROR_NAMES, JointErrors, joint_errors
 
 #: The four corner points of the ``majda2012`` preset.
 CORNERS = ("P1", "P2", "P3", "P4")
@@ -52,7 +52,7 @@ def roll_spread(roll: Float[Array, "n_pos c"]) -> Float[Array, ""]:
 def spline_rails(
     rails, *, start: float = -0.6, stop: float = 0.6, spacing: float = 0.02
 ) -> tuple[SplineRail, SplineRail]:
-    """The profiles ``rails`` (e.g. :func:`~diffguide.majda2012.paper_variant`) as B-spline rails.
+    """The profiles ``rails`` (e.g. :func:`~diffguide.paper_variant`) as B-spline rails.
 
     Sampled every ``spacing / 4`` over ``[start, stop]`` (m) and fitted with knot spacing
     ``spacing`` (m); the coefficients (m) are then the inputs of :func:`influence_map`.

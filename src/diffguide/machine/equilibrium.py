@@ -12,7 +12,7 @@ total potential is convex (SPEC §2.3):
 with ``a_kj`` the element approaches of carriage ``k`` over the rail at ``s = x + X_k + ξ_j``
 (:meth:`~diffguide.guideway.Carriage.approaches`), ``k_s(x) = E A / (L₀ + x)`` the axial stiffness
 of the screw between its fixed bearing and the nut. Its stationary point is found with Newton and
-an Armijo line search, differentiated implicitly by optimistix (:mod:`diffguide._newton`), for
+an Armijo line search, differentiated implicitly by optimistix (:mod:`diffguide._core.newton`), for
 all positions in one vmapped call.
 
 Rigid-table mode: the same machine with an infinitely stiff table, i.e. the interface DOF
@@ -29,12 +29,12 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ._newton import solve_equilibrium
-from ._precision import require_x64
-from ._types import Array, Float, Int
-from .fe.condense import CondensedTable
-from .guideway import Carriage
-from .rails import AbstractRailProfile
+from .._core.newton import solve_equilibrium
+from .._core.precision import require_x64
+from .._core.types import Array, Float, Int
+from ..fe.condense import CondensedTable
+from ..guideway.carriage import Carriage
+from ..guideway.rails import AbstractRailProfile
 
 #: Unknowns in µm and µrad.
 DOF_SCALE = 1e-6

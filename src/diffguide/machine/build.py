@@ -1,4 +1,4 @@
-"""From a machine configuration (:mod:`diffguide.config`, user units) to a
+"""From a machine configuration (:mod:`diffguide.io.config`, user units) to a
 :class:`~diffguide.machine.Machine` (SI): the table condensed onto its carriages and nut, the
 runner block, the screw.
 
@@ -19,13 +19,13 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .config import default_config
-from .contact import HertzBall, PalmgrenRoller, RivinBall
-from .fe.materials import Material
-from .fe.mesh import Rib
-from .fe.table import table_model
-from .guideway import four_row_carriage
-from .machine import Machine
+from ..contact.laws import HertzBall, PalmgrenRoller, RivinBall
+from ..fe.materials import Material
+from ..fe.mesh import Rib
+from ..fe.table import table_model
+from ..guideway.carriage import four_row_carriage
+from ..io.config import default_config
+from .equilibrium import Machine
 
 
 def carriage_from_config(cfg: dict, preload_fraction=None):
@@ -133,7 +133,7 @@ def build_machine(
     """Build (and condense) the machine of a configuration; default: ``majda2012``.
 
     Arguments:
-        cfg: a validated configuration (:func:`diffguide.config.load_config`); default preset.
+        cfg: a validated configuration (:func:`diffguide.io.config.load_config`); default preset.
         thickness: plate thickness override (m; may be traced for gradients).
         E: table Young's modulus override (Pa; may be traced).
         preload_fraction: preload override, fraction of C (may be traced).

@@ -9,7 +9,7 @@ the element in series) to its force ``F`` (N) by a power law
 
 with :math:`\alpha = 3/2` for point contacts (balls) and :math:`\alpha = 10/9` for line contacts
 (rollers). The compression-only, smoothed force, tangent stiffness and energy of an element live in
-:mod:`diffguide.smoothing`; the elliptic Hertz solution in :mod:`diffguide.hertz`.
+:mod:`diffguide.contact.smoothing`; the elliptic Hertz solution in :mod:`diffguide.contact.hertz`.
 
 References: K. L. Johnson, *Contact Mechanics* (1985), §4.2; B. J. Hamrock, D. Brewe,
 J. Lubr. Technol. 105 (1983) 171; A. Palmgren, *Ball and Roller Bearing Engineering* (1959);
@@ -22,8 +22,8 @@ import abc
 import equinox as eqx
 import jax.numpy as jnp
 
-from ._checks import concrete
-from ._types import Array, Float, ScalarLike
+from .._core.checks import concrete
+from .._core.types import Array, Float, ScalarLike
 from .hertz import ball_in_groove_compliance
 
 
@@ -107,8 +107,8 @@ class HertzBall(AbstractContactLaw):
 
     Each ball–groove contact is an elliptical Hertz contact with relative curvatures
     ``2/d`` in the rolling direction and ``2/d − 2/D`` across it, solved exactly with complete
-    elliptic integrals (:func:`diffguide.hertz.ball_in_groove_compliance`). The element has two
-    such contacts in series, so its approach is twice the approach of one contact.
+    elliptic integrals (:func:`~diffguide.contact.hertz.ball_in_groove_compliance`). The element
+    has two such contacts in series, so its approach is twice the approach of one contact.
 
     Arguments:
         d: ball diameter (m).

@@ -17,7 +17,7 @@ Powers of ``r`` use the double-``where`` so that no derivative of any order is N
 
 import jax.numpy as jnp
 
-from ._types import Array, Float, ScalarLike
+from .._core.types import Array, Float, ScalarLike
 
 
 def ramp(a: Float[Array, "..."], eps: ScalarLike) -> Float[Array, "..."]:

@@ -13,7 +13,7 @@ independent, zero-mean, stationary Gaussian process ``e(s)`` with covariance
 ``≈ 0.52`` for Matérn 5/2). Rasmussen & Williams, *Gaussian Processes for Machine Learning*
 (2006), eqs. 4.9 and 4.17.
 
-The profile is represented as a :class:`~diffguide.rails.SplineRail` on fixed knots covering the
+The profile is represented as a :class:`~diffguide.SplineRail` on fixed knots covering the
 visited rail range, so a batch of rails is a leading axis on coefficient arrays. The coefficient
 covariance is the covariance of the least-squares spline projection of the process sampled on a
 grid four times finer than the knots, ``Σ_c = P Σ Pᵀ``, ``P = (BᵀB)⁻¹Bᵀ``; coefficients are drawn
@@ -46,8 +46,8 @@ from types import MappingProxyType
 import equinox as eqx
 import numpy as np
 
-from ._types import Array, Float
-from .rails import SplineRail, bspline_matrix
+from .._core.types import Array, Float
+from ..guideway.rails import SplineRail, bspline_matrix
 
 _KERNELS = ("squared_exponential", "matern52")
 
@@ -142,7 +142,7 @@ MOUNTING_CLASSES = MappingProxyType(
 
 
 class RailBatch(eqx.Module):
-    """A batch of rail pairs as :class:`~diffguide.rails.SplineRail` coefficients.
+    """A batch of rail pairs as :class:`~diffguide.guideway.rails.SplineRail` coefficients.
 
     Attributes:
         start: first knot (m). spacing: knot spacing (m).

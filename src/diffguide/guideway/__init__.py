@@ -1,0 +1,18 @@
+"""Guideway layer: rail error profiles, a rigid carriage on its rail (rows of preloaded
+elements), and one carriage's equilibrium and static characteristic."""
+
+from .carriage import Carriage as Carriage
+from .carriage import element_offsets as element_offsets
+from .carriage import four_row_carriage as four_row_carriage
+from .carriage import majda2012_carriage as majda2012_carriage
+from .carriage import roller25_carriage as roller25_carriage
+from .carriage import row_layout as row_layout
+from .rails import AbstractRailProfile as AbstractRailProfile
+from .rails import BumpRail as BumpRail
+from .rails import PaperPolynomialRail as PaperPolynomialRail
+from .rails import SinusoidalRail as SinusoidalRail
+from .rails import SplineRail as SplineRail
+from .rails import StraightRail as StraightRail
+from .solve import CarriageSolution as CarriageSolution
+from .solve import solve_carriage as solve_carriage
+from .solve import static_characteristics as static_characteristics

@@ -1,0 +1,17 @@
+"""Machine layer: the condensed table on its carriages, rails, screw and gravity; equilibrium at
+every table position; joint kinematic errors at points on the table; the ``majda2012`` machine."""
+
+from .build import build_machine as build_machine
+from .equilibrium import DOF_SCALE as DOF_SCALE
+from .equilibrium import Machine as Machine
+from .equilibrium import MachineState as MachineState
+from .equilibrium import equilibrium as equilibrium
+from .equilibrium import node_motion as node_motion
+from .equilibrium import point_motion as point_motion
+from .equilibrium import rigid_body_map as rigid_body_map
+from .kinematics import ERROR_NAMES as ERROR_NAMES
+from .kinematics import JointErrors as JointErrors
+from .kinematics import error_field as error_field
+from .kinematics import joint_errors as joint_errors
+from .majda2012 import majda2012_machine as majda2012_machine
+from .majda2012 import paper_variant as paper_variant

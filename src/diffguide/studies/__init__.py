@@ -1,0 +1,13 @@
+"""Studies built on the machine: Monte Carlo tolerance sweeps over random rails, sensitivity
+(gradients, influence maps), CNC compensation tables."""
+
+from .compensation import compensation_table as compensation_table
+from .compensation import location_warnings as location_warnings
+from .montecarlo import MonteCarloResult as MonteCarloResult
+from .montecarlo import batched_sweep as batched_sweep
+from .random_rails import GaussianRailModel as GaussianRailModel
+from .random_rails import MountingTolerance as MountingTolerance
+from .random_rails import RailBatch as RailBatch
+from .random_rails import sample_rails as sample_rails
+from .sensitivity import influence_map as influence_map
+from .sensitivity import roll_spread as roll_spread
