@@ -31,7 +31,7 @@ small amplitude term makes the prior proper where data and curvature leave a lin
 import equinox as eqx
 import numpy as np
 
-from ..rails import bspline_matrix
+from ..guideway.rails import bspline_matrix
 
 #: The profiles, in the order of the unknowns: (rail index, plane).
 PROFILES = ((0, "vertical"), (0, "horizontal"), (1, "vertical"), (1, "horizontal"))

@@ -54,11 +54,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._precision import require_x64
-from ..kinematics import joint_errors
-from ..machine import Machine
+from .._core.precision import require_x64
+from ..machine.kinematics import joint_errors
+from ..machine.equilibrium import Machine
 from ..measurements import QUANTITIES, Measurements
-from ..rails import SplineRail, bspline_matrix
+from ..guideway.rails import SplineRail, bspline_matrix
 from .basis import RailBasis, null_space_basis
 from .structure import MachineFamily, StructurePriors
 from .weight import WeightChoice, choose_weight, fixed_weight, project_out
