@@ -35,6 +35,7 @@ MOVED = {
     "diffguide.random_rails": "diffguide.studies.random_rails",
     "diffguide.sensitivity": "diffguide.studies.sensitivity",
     "diffguide.compensation": "diffguide.studies.compensation",
+    "diffguide.measurements": "diffguide.io.measurements",
 }
 
 _IMPORT_MACHINERY = ("<frozen importlib", importlib.__file__.rsplit("/", 1)[0], __file__)
