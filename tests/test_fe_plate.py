@@ -42,7 +42,7 @@ def navier_ss(load: str, a_over_h: float = np.inf, terms: int = 2001) -> float:
 # 757-765 (Timoshenko & Woinowsky-Krieger give 0.00126 and 0.00560); cross-checked below with
 # scikit-fem's Morley element.
 CLAMPED = {"q": 0.00126532, "p": 0.0056120}
-SPEC = {("ss", "q"): 0.00406, ("ss", "p"): 0.01160, ("cl", "q"): 0.00126, ("cl", "p"): 0.00560}
+TABLE = {("ss", "q"): 0.00406, ("ss", "p"): 0.01160, ("cl", "q"): 0.00126, ("cl", "p"): 0.00560}
 
 
 def plate_centre(n: int, a_over_h: float, bc: str, load: str, quarter: bool = True) -> float:
@@ -86,11 +86,12 @@ def test_kirchhoff_plates_converge(bc, load, min_rate):
     rate = np.polyfit(np.log(1.0 / ns), np.log(err), 1)[0]
     assert rate > min_rate, (w, err, rate)
     assert err[-1] < 0.01
-    assert w[-1] == pytest.approx(SPEC[(bc, load)], rel=0.01)
+    assert w[-1] == pytest.approx(TABLE[(bc, load)], rel=0.01)
 
 
 def test_references_are_consistent():
-    """Navier sums reproduce the SPEC coefficients; Mindlin sums the SPEC's a/h = 5, 10 values."""
+    """Navier sums reproduce the tabulated coefficients (Timoshenko & Woinowsky-Krieger); Mindlin
+    sums the tabulated a/h = 5, 10 values."""
     assert navier_ss("q") == pytest.approx(0.00406, abs=5e-6)
     assert navier_ss("p") == pytest.approx(0.01160, abs=5e-6)
     assert navier_ss("q", 5.0) == pytest.approx(0.0049043, rel=1e-4)

@@ -103,7 +103,7 @@ def _crest_and_slope_expectations(c, lam, A):
 
 @pytest.mark.parametrize("ratio", [0.5, 0.8, 1.0, 1.5, 2.0, 3.0, 5.0, 10.0, 20.0])
 def test_averaging_of_a_sinusoidal_rail(ratio):
-    # SPEC §4: a rigid carriage averages a rail e = A sin(2πs/λ) over its n elements
+    # a rigid carriage averages a rail e = A sin(2πs/λ) over its n elements
     c = majda2012_carriage()
     lam = ratio * c.length
     A = 1e-9  # small against g0 ≈ 2.5 µm: the linearized relation

@@ -1,4 +1,4 @@
-"""The machine: the paper's qualitative findings (SPEC §3), rigid-table kinematics and
+"""The machine: the paper's qualitative findings (Majda 2012), rigid-table kinematics and
 averaging, straight rails, initial guesses, and implicit gradients against finite differences."""
 
 import jax
@@ -121,7 +121,7 @@ def test_rigid_table_points_follow_rigid_body_kinematics(machine):
 
 @pytest.mark.parametrize("ratio", [0.3, 0.5, 0.8, 1.0, 1.5, 2.5, 4.0])
 def test_rigid_table_two_carriage_averaging(machine, ratio):
-    # SPEC §4: both rails e = A sin(2πs/λ) (vertical); a rigid table on two carriages per rail at
+    # both rails e = A sin(2πs/λ) (vertical); a rigid table on two carriages per rail at
     # spacing l follows A·H_z(λ)·cos(πl/λ)·sin(2πx/λ) at its centre
     c = machine.carriage
     u = np.asarray(c.xi)

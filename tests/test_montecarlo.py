@@ -105,7 +105,7 @@ def test_columns_and_csv(result):
 
 def test_rail_offset_is_invisible_but_slope_difference_is_not(machine):
     # a constant offset of rail 2 leaves every relative error unchanged; a slope difference
-    # between the rails does not (SPEC §2.5, the gauge)
+    # between the rails does not (the gauge: joint errors are relative)
     start, spacing, n = default_knots()
     zero = np.zeros(n)
     offset = linear_coefficients(start, spacing, n, 20e-6, 20e-6)

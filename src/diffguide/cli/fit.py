@@ -1,4 +1,4 @@
-"""``diffguide fit``: rail straightness profiles from measured pitch, yaw, roll (SPEC §2.5)."""
+"""``diffguide fit``: rail straightness profiles from measured pitch, yaw, roll."""
 
 import argparse
 import json

@@ -8,7 +8,7 @@ load direction ``n_r`` (in the Y–Z plane): the direction of the force an eleme
 carriage.
 
 With carriage pose ``q = (t, θ)`` (translation, m; small rotation, rad) and rail deviation
-``e(s)`` (m) under the element, the approach of element ``j`` is (SPEC §2.2)
+``e(s)`` (m) under the element, the approach of element ``j`` is
 
 .. math::  a_j = g_0 - c_j + n_j \cdot \bigl(e(s_j) - t - θ × p_j\bigr),
 
@@ -239,7 +239,7 @@ def four_row_carriage(
     """A four-row carriage whose catalogue preload is a fraction of its dynamic capacity.
 
     The preload force ``preload_fraction·capacity`` (N) is divided equally over the ``4n``
-    elements (SPEC §2.1), which gives the force per element and, through the law, ``g₀``.
+    elements, which gives the force per element and, through the law, ``g₀``.
 
     Arguments:
         law: element contact law. n: elements per row. pitch: element pitch (m).

@@ -4,7 +4,8 @@ A profile maps the rail coordinate ``s`` (m, along X) to the rail's displacement
 ``(e_y(s), e_z(s))`` (m): horizontal (+Y) and vertical (+Z) straightness deviation of the rail's
 running grooves. Profiles are ``eqx.Module`` pytrees, so every array field is differentiable.
 
-The source paper's error (Majda 2012, eq. 4; garbled in its text, read as in SPEC §3):
+The source paper's error (Majda 2012, eq. 4; garbled in the
+printed text, read as the quadratic below, which reproduces the paper's Fig. 6):
 :math:`i(x) = (Δ/2)\,(x/1000 + (x/1000)^2)`, ``x`` in mm, ``Δ = 0.05`` mm.
 """
 

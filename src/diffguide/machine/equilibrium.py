@@ -3,7 +3,7 @@ r"""The machine: a condensed elastic table on four carriages, two rails, the fee
 Unknowns at each table position ``x``: the interface DOF ``u`` of the condensed table
 (:class:`~diffguide.fe.condense.CondensedTable`): 6 per carriage patch (the carriage is a rigid
 body bolted to its patch, so its pose *is* the patch's DOF) and 6 for the screw-nut patch. The
-total potential is convex (SPEC §2.3):
+total potential is convex:
 
 .. math::
 

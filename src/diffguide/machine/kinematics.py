@@ -1,7 +1,7 @@
 r"""Joint kinematic errors of the X axis at points on the table (ISO 230-1).
 
 At a control point P the six errors at table position ``x`` are the motion of the material point
-P at ``x`` minus its motion at the reference position ``x_ref`` (SPEC §2.4):
+P at ``x`` minus its motion at the reference position ``x_ref`` (ISO 230-1):
 
 .. math::  [E_{XX}, E_{YX}, E_{ZX}, E_{AX}, E_{BX}, E_{CX}](x) = m_P(x) - m_P(x_{ref}),
 

@@ -4,7 +4,7 @@ Values the paper gives and those chosen here are listed with their reasons in
 :mod:`diffguide.presets` (table, layout, points), :func:`diffguide.guideway.majda2012_carriage`
 (the runner block) and :func:`diffguide.fe.table.majda2012_table` (mesh, nut patch).
 
-Rail error (Majda 2012, eq. 4, SPEC §3): ``i(s) = (Δ/2)(s/1 m + (s/1 m)²)``, ``Δ = 0.05 mm``, on
+Rail error (Majda 2012, eq. 4): ``i(s) = (Δ/2)(s/1 m + (s/1 m)²)``, ``Δ = 0.05 mm``, on
 
 1. rail 1 vertical, rail 2 straight;
 2. rail 1 horizontal, rail 2 straight;

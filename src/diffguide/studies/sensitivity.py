@@ -7,7 +7,7 @@ mean roll at that position,
 .. math::  D = \sqrt{\frac{1}{N C}\sum_i\sum_c \bigl(E_{AX,c}(x_i) - \bar E_{AX}(x_i)\bigr)^2}.
 
 A rigid table gives ``D = 0`` (every point rolls alike); the elastic table's ``D`` is the roll a
-level at one corner cannot see at the others (SPEC §1). ``D`` is smooth in everything the model
+level at one corner cannot see at the others. ``D`` is smooth in everything the model
 is smooth in, so ``jax.grad``/``jax.jvp`` through :func:`diffguide.build_machine` and
 :func:`diffguide.joint_errors` give its derivatives (implicit differentiation of the
 equilibrium).
@@ -15,8 +15,8 @@ equilibrium).
 *Influence map* — the roll at each corner and table position caused by a unit bump on a rail:
 ``∂E_AX,c(x_i)/∂c_k`` for the B-spline coefficients ``c_k`` of a
 :class:`~diffguide.guideway.rails.SplineRail`, by forward mode (:func:`jax.jacfwd`; never ``jacrev``
-here, see PITFALLS). Units rad/m = µrad per µm of coefficient (a coefficient of 1 µm is a bump
-of peak 2/3 µm centred at ``s₀ + (k−1)h``, ``4h`` wide at its base).
+here: reverse mode through the vmapped implicit solves took 21–37 s and 14.5 GB). Units rad/m =
+µrad per µm of coefficient (a coefficient of 1 µm is a bump of peak 2/3 µm centred at ``s₀ + (k−1)h``, ``4h`` wide at its base).
 """
 
 from collections.abc import Sequence
