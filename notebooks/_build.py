@@ -148,7 +148,7 @@ import numpy as np
 import matplotlib.pyplot as plt
 plt.rcParams["figure.dpi"] = 60
 from diffguide.machine.majda2012 import majda2012_machine
-from diffguide.measurements import read_measurements
+from diffguide.io.measurements import read_measurements
 from diffguide.inverse import fit_rails, identifiability
 from diffguide.plotting.fit import plot_profiles
 

@@ -17,7 +17,7 @@ from battery.cases import CASES, result
 from battery.score import TRIM, score_profiles
 
 from diffguide.inverse import RailBasis, blind_wavelengths
-from diffguide.measurements import QUANTITIES
+from diffguide.io.measurements import QUANTITIES
 
 WRONG_STRUCTURE = [name for name, make in CASES.items() if make().wrong_structure]
 

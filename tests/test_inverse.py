@@ -18,7 +18,7 @@ from diffguide.inverse import (
     identifiability,
 )
 from diffguide.inverse import fit as fitmod
-from diffguide.measurements import Measurements
+from diffguide.inverse.data import Measurements
 
 ROOT = Path(__file__).resolve().parents[1]
 

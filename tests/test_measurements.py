@@ -4,11 +4,11 @@ import math
 
 import numpy as np
 import pytest
-from diffguide.kinematics import ERROR_NAMES
+from diffguide.machine.kinematics import ERROR_NAMES
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from diffguide.measurements import (
+from diffguide.io.measurements import (
     MIN_SCATTER_DOF,
     QUANTITIES,
     merge_readings,

@@ -51,7 +51,7 @@ from .machine import error_field as error_field  # noqa: E402
 from .machine import joint_errors as joint_errors  # noqa: E402
 from .machine import majda2012_machine as majda2012_machine  # noqa: E402
 from .machine import paper_variant as paper_variant  # noqa: E402
-from .measurements import read_measurements as read_measurements  # noqa: E402
+from .io.measurements import read_measurements as read_measurements  # noqa: E402
 from .studies import GaussianRailModel as GaussianRailModel  # noqa: E402
 from .studies import MonteCarloResult as MonteCarloResult  # noqa: E402
 from .studies import MountingTolerance as MountingTolerance  # noqa: E402

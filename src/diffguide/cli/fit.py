@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..measurements import QUANTITIES
+from ..io.measurements import QUANTITIES
 
 PRESETS = ("majda2012",)
 _S_STEP_MM = 2.0
@@ -165,7 +165,7 @@ def _rails_csv(s_m, val, sig) -> str:
 
 
 def _fit_csv(meas, fits) -> str:
-    from ..measurements import ANGULAR_UNITS, LINEAR_UNITS, format_csv
+    from ..io.measurements import ANGULAR_UNITS, LINEAR_UNITS, format_csv
 
     cols = ["line", "position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit", "run",
             "direction", "instrument", "status"]
@@ -305,8 +305,8 @@ def _write_dir(out: Path, files: dict[str, object]) -> None:
 
 def run(args) -> int:
     from ..inverse import MachineFamily, fit_rails, identifiability
+    from ..io.measurements import read_measurements
     from ..machine.build import build_machine
-    from ..measurements import read_measurements
     from ._common import machine_config
 
     t_start = time.perf_counter()

@@ -57,7 +57,7 @@ import numpy as np
 from .._core.precision import require_x64
 from ..machine.kinematics import joint_errors
 from ..machine.equilibrium import Machine
-from ..measurements import QUANTITIES, Measurements
+from .data import QUANTITIES, Measurements
 from ..guideway.rails import SplineRail, bspline_matrix
 from .basis import RailBasis, null_space_basis
 from .structure import MachineFamily, StructurePriors
