@@ -16,7 +16,7 @@ stresses; :data:`CASES` lists them). From a case:
    than the fit's 20 × 10 mesh (built once per distinct structure and layout);
 3. :func:`readings_csv` — the readings of ``Case.runs`` runs (forward and, unless
    unidirectional, backward), one row each, in the long format of
-   :mod:`diffguide.measurements`, with Gaussian noise per reading (:data:`NOISE`: levels 4 µm/m,
+   :mod:`diffguide.io.measurements`, with Gaussian noise per reading (:data:`NOISE`: levels 4 µm/m,
    interferometer 2 µm/m, straightness optics 1 µm), optionally a linear drift in time over each
    run and gross outliers; fixed seeds;
 4. :func:`measurements` — that text through ``parse_readings`` + ``merge_readings``;
@@ -34,7 +34,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 import numpy as np
 
-from diffguide.rails import AbstractRailProfile
+from diffguide.guideway.rails import AbstractRailProfile
 
 #: Readings' standard deviation per (instrument, kind): µm/m (angular), µm (linear).
 NOISE = {
@@ -354,7 +354,7 @@ def _points_key(points):
 
 def truth_machine(case: Case):
     """The machine that makes the data: 40 × 20 mesh, the case's thickness and preload."""
-    from diffguide.majda2012 import majda2012_machine
+    from diffguide.machine.majda2012 import majda2012_machine
 
     key = ("truth", case.thickness, case.preload, _points_key(case.points()))
     if key not in _MACHINES:
@@ -370,7 +370,7 @@ def truth_machine(case: Case):
 
 def fit_machine(points: dict[str, tuple[float, float]]):
     """The fit's machine: the ``majda2012`` preset (20 × 10 mesh, 50 mm, 8 %) at ``points``."""
-    from diffguide.majda2012 import majda2012_machine
+    from diffguide.machine.majda2012 import majda2012_machine
 
     key = ("fit", _points_key(points))
     if key not in _MACHINES:
@@ -380,7 +380,7 @@ def fit_machine(points: dict[str, tuple[float, float]]):
 
 def simulate_errors(case: Case) -> np.ndarray:
     """Noise-free joint errors ``(n_pos, n_points, 6)`` of the truth, in µm and µm/m."""
-    from diffguide.kinematics import joint_errors
+    from diffguide.machine.kinematics import joint_errors
 
     je = joint_errors(truth_machine(case), truth_rails(case), case.positions_mm() * 1e-3)
     if not bool(np.all(np.asarray(je.converged))):
@@ -441,7 +441,7 @@ def readings_csv(case: Case, errors: np.ndarray | None = None, noise: bool = Tru
 
 def measurements(case: Case, errors: np.ndarray | None = None, noise: bool = True):
     """The case's readings through the input path: ``parse_readings`` + ``merge_readings``."""
-    from diffguide.measurements import merge_readings, parse_readings
+    from diffguide.io.measurements import merge_readings, parse_readings
 
     text = readings_csv(case, errors, noise)
     return merge_readings(parse_readings(text, case.name), source=case.name)
