@@ -34,7 +34,8 @@ def _row(res) -> tuple[str, dict]:
     if res.fit is None:
         msg = res.error.splitlines()[0]
         msg = msg if len(msg) <= 90 else msg[:87] + "..."
-        row = f"| {c.name} | {c.stresses} | — | raised: `{msg}` | — | — | — | {res.seconds:.0f} |"
+        row = (f"| {c.name} | {c.stresses} | — | raised: `{msg}` | — | — | — | — | "
+               f"{res.seconds:.0f} |")
         return row, {"name": c.name, "error": res.error, "seconds": res.seconds}
     s = res.score
     r, p = divmod(int(s.coverage.argmin()), 2)
@@ -43,7 +44,7 @@ def _row(res) -> tuple[str, dict]:
         f"({100 * s.overall_rel:.0f} %; worst {100 * s.worst_rel:.0f} %) | "
         f"{s.overall_sigma_rms_um:.3g} µm | "
         f"{100 * s.overall_coverage:.0f} % / {100 * s.worst_coverage:.0f} % "
-        f"({s.label(r, p)}) | {'yes' if res.fit.converged else '**no**'} | "
+        f"({s.label(r, p)}) | {_structure(res)} | {'yes' if res.fit.converged else '**no**'} | "
         f"{res.seconds:.0f} |"
     )
     data = {
@@ -64,6 +65,24 @@ def _row(res) -> tuple[str, dict]:
     return row, data
 
 
+def _structure(res) -> str:
+    """Estimated thickness and preload with σ, and the truth in brackets."""
+    st = getattr(res.fit, "structure", {}) or {}
+    c = res.case
+    out = []
+    if "thickness" in st:
+        v = st["thickness"]
+        true = (c.thickness or 0.05) * 1e3
+        out.append(f"t {v['value'] * 1e3:.0f} ± {v['sigma'] * 1e3:.0f} mm ({true:.0f})"
+                   + ("" if v["determined"] else " prior"))
+    if "preload" in st:
+        v = st["preload"]
+        true = (c.preload or 0.08) * 100
+        out.append(f"P {v['value'] * 100:.1f} ± {v['sigma'] * 100:.1f} % ({true:.0f})"
+                   + ("" if v["determined"] else " prior"))
+    return "; ".join(out) or "—"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("cases", nargs="*", help=f"default all: {', '.join(CASES)}")
@@ -79,9 +98,9 @@ def main() -> None:
     )
     print(
         "| case | what it stresses | χ²/dof | profile RMS error (% of truth) | σ RMS | "
-        "±2σ coverage: all / worst profile | converged | s |"
+        "±2σ coverage: all / worst profile | structure (truth) | converged | s |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     out = []
     for name in names:
         row, data = _row(result(name))

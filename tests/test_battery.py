@@ -147,7 +147,7 @@ def test_noise_levels_and_outliers():
 
 def test_blind_wavelengths_are_the_presets():
     """The blind-wavelength case puts its content where the preset's rigid-table formulae say."""
-    machine = cases.fit_machine(cases.baseline().points())
+    machine = cases.fit_machine(cases.baseline().points()).base
     bw = blind_wavelengths(machine, 1.0)
     expected = [
         bw["carriage_averaging_m"][0],
@@ -183,3 +183,28 @@ def test_wrong_structure_profiles_within_15_percent(name):
     res = result(name)
     assert res.fit is not None, res.error
     assert res.score.worst_rel <= 0.15, res.score.rel
+
+
+@pytest.mark.parametrize("name", WRONG_STRUCTURE)
+def test_wrong_structure_parameters_within_2_sigma(name):
+    """Where the truth machine differs from the prior, each structural parameter that the data
+    determine comes back within its reported 2σ of the truth (undetermined ones must say so:
+    their σ stays near the prior's)."""
+    res = result(name)
+    case = res.case
+    truth = {"thickness": case.thickness or cases.FIT_PRIORS[0][0],
+             "preload": case.preload or cases.FIT_PRIORS[1][0]}
+    for pname, v in res.fit.structure.items():
+        if v["determined"]:
+            assert abs(np.log(v["value"] / truth[pname])) <= 2 * v["sigma_log"], (pname, v)
+        else:
+            assert v["sigma_log"] >= 0.7 * v["prior_sigma_log"]
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_large_errors_come_with_large_sigma(name):
+    """Honesty of σ: where the error is large, σ is large too — the RMS error of every profile
+    stays below 3× its RMS σ (a Gaussian error inside its band has ratio ≈ 1)."""
+    res = result(name)
+    sc = res.score
+    assert np.all(sc.rms_um <= 3 * sc.sigma_rms_um + 1e-3), (sc.rms_um, sc.sigma_rms_um)

@@ -368,13 +368,24 @@ def truth_machine(case: Case):
     return _MACHINES[key]
 
 
+#: The fit's structural priors: what a user who knows nothing about the table would state
+#: (the defaults of ``diffguide fit``): thickness 50 mm in [25, 100] mm, preload 8 % of C in
+#: [2, 16] %.
+FIT_PRIORS = ((0.05, 0.025, 0.10), (0.08, 0.02, 0.16))
+
+
 def fit_machine(points: dict[str, tuple[float, float]]):
-    """The fit's machine: the ``majda2012`` preset (20 × 10 mesh, 50 mm, 8 %) at ``points``."""
+    """The fit's machine: the ``majda2012`` preset (20 × 10 mesh) at ``points``, with the table
+    thickness and the preload as unknowns (:data:`FIT_PRIORS`)."""
+    from diffguide.inverse import MachineFamily, Prior, StructurePriors
     from diffguide.machine.majda2012 import majda2012_machine
 
     key = ("fit", _points_key(points))
     if key not in _MACHINES:
-        _MACHINES[key] = majda2012_machine(points=points)
+        t, p = FIT_PRIORS
+        _MACHINES[key] = MachineFamily.build(
+            lambda **kw: majda2012_machine(points=points, **kw),
+            StructurePriors(Prior(*t), Prior(*p)))
     return _MACHINES[key]
 
 
