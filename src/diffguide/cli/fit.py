@@ -11,8 +11,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.measurements import QUANTITIES
-
 PRESETS = ("majda2012",)
 _S_STEP_MM = 2.0
 #: Exit code when the results are written but the elastic fit did not converge.
@@ -42,6 +40,14 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="machine model (majda2012: 1000 x 500 mm table, rails 340 mm apart)")
     p.add_argument("--measurements", required=True, metavar="FILE.csv",
                    help="measurement CSV (see above)")
+    p.add_argument("--measurements-format", dest="layout", choices=("auto", "long", "wide"),
+                   default="auto",
+                   help="layout of --measurements: long (one reading per row), wide (targets x "
+                   "runs, ISO 230-2 style) or auto (detected; see 'diffguide import')")
+    p.add_argument("--x0-mm", type=float, default=None,
+                   help="machine coordinate (mm) of the table position x = 0, subtracted from "
+                   "the file's positions and from the compensation table's; default: 0 for the "
+                   "long layout, the middle of the measured targets for the wide one")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (replaced)")
     p.add_argument("--knot-spacing-mm", type=float, default=None,
                    help="B-spline knot spacing of the profiles (mm); default: the carriage's "
@@ -65,10 +71,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--preload-prior", metavar="VALUE,LO,HI", default=None,
                    help="prior of the preload (fraction of C), as for the thickness; default: the "
                    "machine's preload and [0.25, 2] times it")
-    p.add_argument("--nx", type=int, default=None, help="table mesh divisions along X "
-                   "(default 20)")
-    p.add_argument("--ny", type=int, default=None, help="table mesh divisions along Y "
-                   "(default 10)")
+    p.add_argument("--nx", type=int, default=None, help=argparse.SUPPRESS)  # deprecated: --mesh
+    p.add_argument("--ny", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--no-rigid", action="store_true",
                    help="skip the rigid-table inversion")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
@@ -190,6 +194,8 @@ def _fit_csv(meas, fits) -> str:
 
 
 def _summary(fit, meas, seconds) -> dict:
+    from ..io.measurements import QUANTITIES
+
     chan = meas.channel_index()
     channels = []
     for c in range(len(meas.channels)):
@@ -305,14 +311,17 @@ def _write_dir(out: Path, files: dict[str, object]) -> None:
 
 def run(args) -> int:
     from ..inverse import MachineFamily, fit_rails, identifiability
-    from ..io.measurements import read_measurements
+    from ..io.importers import read_any
     from ..machine.build import build_machine
     from ._common import machine_config
 
     t_start = time.perf_counter()
     _check_out(Path(args.out))
     cfg = machine_config(args)
-    meas = read_measurements(args.measurements)
+    notes: list[str] = []
+    meas = read_any(args.measurements, args.layout, args.x0_mm, notes)
+    for n in notes:
+        _say(args, f"note: {n}")
     _check_inputs(meas, args, cfg)
     priors = structure_priors(args, cfg)
     lines = ", ".join(map(str, meas.rejected[:10])) + (" ..." if len(meas.rejected) > 10 else "")
@@ -434,6 +443,7 @@ def _jsonable(obj):
 
 
 def _figures(meas, fits, profiles, s_m, truth):
+    from ..io.measurements import QUANTITIES
     from ..plotting.fit import plot_curves, plot_profiles
 
     labels = {"": "elastic", "_rigid": "rigid table"}

@@ -1,18 +1,26 @@
 r"""Measured joint kinematic errors: read, validate and merge a measurement CSV (SPEC §2.5).
 
-File format (UTF-8, comma separated, one header line; blank lines and lines starting with ``#``
-are skipped)::
+File format (UTF-8, one header line; blank lines and lines starting with ``#`` are skipped; the
+separator is ``,``, ``;`` or tab, sniffed from the header line; with ``;`` or tab a decimal
+comma is read; other layouts: :mod:`diffguide.io.importers`)::
 
     position_mm,point,x_mm,y_mm,quantity,value,unit[,sigma][,run][,direction][,instrument][,z_mm]
+    [,reference]
 
 - ``position_mm``: table position ``x`` (mm). ``point``: the control point's name; ``x_mm``,
   ``y_mm``: where it is on the table top (mm, from the table centre; the same for every row of
   a point).
-- ``quantity``: ``EXX``, ``EYX``, ``EZX`` (µm: ``µm``/``um``, ``mm``) or ``EAX``, ``EBX``, ``ECX``
-  (``µm/m``/``um/m``, ``µrad``/``urad``, ``mrad``, ``arcsec``). ``value`` and ``sigma`` (> 0,
+- ``quantity``: ``EXX``, ``EYX``, ``EZX`` (``µm``/``um``, ``mm``, ``nm``, ``in``) or ``EAX``,
+  ``EBX``, ``ECX`` (``µm/m``/``um/m``, ``µrad``/``urad``, ``mrad``, ``mm/m``, ``arcsec``,
+  ``arcmin``, ``deg``; case and spaces do not matter). ``value`` and ``sigma`` (> 0,
   the standard uncertainty of *one reading*) are in ``unit``.
-- ``run``: a label of the run (default: one run). ``direction``: ``forward``/``+``/``fwd`` or
-  ``backward``/``reverse``/``-``/``bwd`` (default: forward).
+- ``run``: a label of the run (default: one run). ``direction``: ``forward``/``+``/``fwd``/
+  ``positive`` or ``backward``/``reverse``/``-``/``bwd``/``negative`` (default: forward).
+- ``reference``: a differential level pair's reference level reading (in ``unit``): the reading
+  used is ``value − reference`` (measuring minus reference level). Its noise is not added to
+  the default σ: with enough runs the pooled scatter (step 3) includes it.
+- any other column (temperature, ...) is ignored and reported as a note, unless its name is
+  close to one of the above (a typo: an error).
 - ``instrument``: ``level`` or ``interferometer``. Default: ``level`` for roll and pitch
   (``EAX``, ``EBX``), ``interferometer`` otherwise (only an interferometer measures yaw and the
   linear errors).
@@ -47,9 +55,11 @@ Every row is validated; a bad row raises one ``ValueError`` ``"FILE:LINE: field 
 
 import csv
 import dataclasses
+import difflib
 import io
 import math
 import os
+import re
 from collections import defaultdict
 
 import numpy as np
@@ -58,11 +68,17 @@ from ..inverse.data import LINEAR, QUANTITIES, Measurements
 from ..inverse.data import default_instrument as _default_instrument
 
 #: unit -> factor to SI (m or rad)
-LINEAR_UNITS = {"µm": 1e-6, "um": 1e-6, "μm": 1e-6, "mm": 1e-3}
+LINEAR_UNITS = {"µm": 1e-6, "um": 1e-6, "μm": 1e-6, "mm": 1e-3, "nm": 1e-9, "in": 0.0254}
 ANGULAR_UNITS = {
     "µm/m": 1e-6, "um/m": 1e-6, "μm/m": 1e-6, "µrad": 1e-6, "urad": 1e-6, "μrad": 1e-6,
-    "mrad": 1e-3, "arcsec": math.pi / (180 * 3600),
+    "mrad": 1e-3, "mm/m": 1e-3, "arcsec": math.pi / (180 * 3600),
+    "arcmin": math.pi / (180 * 60), "deg": math.pi / 180, "°": math.pi / 180,
 }
+#: Other spellings of the units above (read case-insensitively, spaces removed).
+UNIT_SPELLINGS = {"µ": "µm", "micron": "µm", "microns": "µm", "mic": "µm", "inch": "in",
+                  "µm/1m": "µm/m", "um/1m": "µm/m", "μm/1m": "µm/m", "micron/m": "µm/m",
+                  "µradian": "µrad", "sec": "arcsec", '"': "arcsec", "min": "arcmin",
+                  "'": "arcmin", "degree": "deg", "degrees": "deg", "mm/1000mm": "mm/m"}
 INSTRUMENTS = ("level", "interferometer")
 #: Repeatability of one reading when the file gives no sigma and there are too few runs (SI).
 DEFAULT_SIGMA = {("level", "angular"): 4e-6, ("interferometer", "angular"): 2e-6,
@@ -75,9 +91,11 @@ MIN_RUNS_FOR_OUTLIERS = 3
 OUTLIER_Z = 6.0
 
 REQUIRED = ("position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit")
-OPTIONAL = ("sigma", "run", "direction", "instrument", "z_mm")
-_FORWARD = ("forward", "fwd", "f", "+", "+1", "1", "up")
-_BACKWARD = ("backward", "bwd", "b", "reverse", "rev", "r", "-", "-1", "down")
+OPTIONAL = ("sigma", "run", "direction", "instrument", "z_mm", "reference")
+_FORWARD = ("forward", "fwd", "f", "+", "+1", "1", "up", "positive", "pos")
+_BACKWARD = ("backward", "bwd", "b", "reverse", "rev", "r", "-", "-1", "down", "negative", "neg")
+#: Field separators recognised (the header line decides: tab, then ';', else ',').
+DELIMITERS = ("\t", ";", ",")
 _MAX_BYTES = 200 * 1024 * 1024
 
 
@@ -121,6 +139,39 @@ def _number(row, field, unit_hint):
     return v
 
 
+def unit_key(unit: str, units: dict) -> str:
+    """The key of ``units`` that ``unit`` spells (``"UM/M"``, ``"µm / m"``, ``"micron"``...);
+    ``unit`` itself when it is none."""
+    if unit in units:
+        return unit
+    u = unit.replace(" ", "").lower().replace("μ", "µ")
+    u = UNIT_SPELLINGS.get(u, u)
+    for k in units:
+        if k.lower() == u:
+            return k
+    return unit
+
+
+def sniff_delimiter(header: str) -> str:
+    """The field separator of a CSV whose header line is ``header``: tab or ``;`` when the
+    header contains one (instrument software of decimal-comma locales), else ``,``."""
+    for d in ("\t", ";"):
+        if d in header:
+            return d
+    return ","
+
+
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+(?:[eE][+-]?\d+)?$")
+
+
+def decimal_point(field: str, delimiter: str) -> str:
+    """``"1,25"`` → ``"1.25"`` in a file whose separator is not the comma (a decimal comma);
+    anything else unchanged."""
+    if delimiter != "," and _DECIMAL_COMMA.match(field):
+        return field.replace(",", ".")
+    return field
+
+
 def _parse_row(row: dict, line: int) -> Reading:
     position = _number(row, "position_mm", "mm") * 1e-3
     point = row["point"].strip()
@@ -132,12 +183,14 @@ def _parse_row(row: dict, line: int) -> Reading:
         _field_error("quantity", row["quantity"], "unknown quantity", ", ".join(QUANTITIES))
     units = LINEAR_UNITS if quantity in LINEAR else ANGULAR_UNITS
     unit = row["unit"].strip()
-    key = unit if unit in units else unit.lower()
+    key = unit_key(unit, units)
     if key not in units:
         allowed = ", ".join(u for u in units if "μ" not in u)
         _field_error("unit", unit, f"not a unit of {quantity}", allowed)
     factor = units[key]
     value = _number(row, "value", unit) * factor
+    if (row.get("reference") or "").strip():  # differential pair: measuring minus reference
+        value -= _number(row, "reference", unit) * factor
     sigma = None
     if (row.get("sigma") or "").strip():
         sigma = _number(row, "sigma", unit) * factor
@@ -167,8 +220,8 @@ def _parse_row(row: dict, line: int) -> Reading:
                    instrument, z)
 
 
-def read_readings(path: str | os.PathLike) -> tuple[Reading, ...]:
-    """Validated rows of a measurement CSV (not merged). Raises ``ValueError`` on bad input."""
+def read_text(path: str | os.PathLike) -> str:
+    """The UTF-8 text of a measurement file (size and encoding checked; one-line errors)."""
     name = os.fspath(path)
     try:
         size = os.path.getsize(name)
@@ -183,41 +236,70 @@ def read_readings(path: str | os.PathLike) -> tuple[Reading, ...]:
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
         raise ValueError(f"{name}:{line}: not UTF-8 text (byte {exc.start})") from None
-    return parse_readings(text, name)
+    if "\x00" in text:
+        line = text[: text.index("\x00")].count("\n") + 1
+        raise ValueError(f"{name}:{line}: the file contains a NUL byte (not a CSV text file)")
+    return text
 
 
-def parse_readings(text: str, name: str = "<text>") -> tuple[Reading, ...]:
-    """Validated rows from the text of a measurement CSV (see :func:`read_readings`)."""
+def read_readings(path: str | os.PathLike, x0_mm: float = 0.0,
+                  notes: list | None = None) -> tuple[Reading, ...]:
+    """Validated rows of a measurement CSV (not merged). Raises ``ValueError`` on bad input."""
+    return parse_readings(read_text(path), os.fspath(path), x0_mm=x0_mm, notes=notes)
+
+
+def split_line(line: str, delimiter: str, name: str, number: int) -> list[str]:
+    """The stripped fields of one CSV line (quotes honoured; decimal commas made points)."""
+    try:
+        fields = next(csv.reader(io.StringIO(line), delimiter=delimiter, strict=True))
+    except (csv.Error, StopIteration) as exc:
+        raise ValueError(f"{name}:{number}: not a valid CSV line ({exc})") from None
+    return [decimal_point(f.strip(), delimiter) for f in fields]
+
+
+def parse_readings(text: str, name: str = "<text>", x0_mm: float = 0.0,
+                   notes: list | None = None) -> tuple[Reading, ...]:
+    """Validated rows from the text of a long measurement CSV (module docstring).
+
+    The separator is sniffed from the header line (tab, ``;`` or ``,``); with ``;`` or tab a
+    decimal comma is read as a decimal point. ``x0_mm``: the machine coordinate of the table
+    position x = 0 (subtracted from ``position_mm``). Columns that are not in the format are
+    ignored and named in ``notes`` (a list that gets one line per such column), unless their
+    name is close to a column of the format (a typo: an error).
+    """
     if "\x00" in text:
         line = text[: text.index("\x00")].count("\n") + 1
         raise ValueError(f"{name}:{line}: the file contains a NUL byte (not a CSV text file)")
     lines = text.splitlines()
-    header, header_line = None, 0
+    header, header_line, delimiter = None, 0, ","
     readings = []
     points: dict[str, tuple[tuple[float, float], int]] = {}
     for number, line in enumerate(lines, start=1):
         stripped = line.strip()
         if not stripped or stripped.startswith("#"):
             continue
-        try:
-            fields = next(csv.reader(io.StringIO(line), strict=True))
-        except (csv.Error, StopIteration) as exc:
-            raise ValueError(f"{name}:{number}: not a valid CSV line ({exc})") from None
-        fields = [f.strip() for f in fields]
+        if header is None:
+            delimiter = sniff_delimiter(line)
+        fields = split_line(line, delimiter, name, number)
         if header is None:
             header, header_line = [f.lower() for f in fields], number
-            _check_header(header, name, number)
+            ignored = _check_header(header, name, number)
+            if ignored and notes is not None:
+                notes.append(f"{name}:{number}: column(s) {', '.join(ignored)} ignored (not "
+                             "part of the measurement format)")
             continue
         if len(fields) != len(header):
             raise ValueError(
                 f"{name}:{number}: {len(fields)} fields, the header (line {header_line}) has "
-                f"{len(header)} ({','.join(header)})"
+                f"{len(header)} ({delimiter.join(header)})"
             )
         row = dict(zip(header, fields))
         try:
             reading = _parse_row(row, number)
         except _RowError as exc:
             raise ValueError(f"{name}:{number}: {exc}") from None
+        if x0_mm:
+            reading = dataclasses.replace(reading, position=reading.position - x0_mm * 1e-3)
         prev = points.get(reading.point)
         if prev is None:
             points[reading.point] = (reading.xy, number)
@@ -236,11 +318,18 @@ def parse_readings(text: str, name: str = "<text>") -> tuple[Reading, ...]:
     return tuple(readings)
 
 
-def _check_header(header, name, line):
+def _check_header(header, name, line) -> list[str]:
+    """Check a long header; returns the columns to ignore (not in the format, not a typo)."""
     allowed = REQUIRED + OPTIONAL
+    ignored = []
     for f in header:
         if f not in allowed:
-            raise ValueError(f"{name}:{line}: unknown column {f!r} (allowed {', '.join(allowed)})")
+            close = difflib.get_close_matches(f, allowed, n=1, cutoff=0.75)
+            if close or not f:
+                hint = f", did you mean {close[0]!r}?" if close else ""
+                raise ValueError(f"{name}:{line}: unknown column {f!r}{hint} (allowed "
+                                 f"{', '.join(allowed)}; other columns are ignored)")
+            ignored.append(f)
     if len(set(header)) != len(header):
         dup = sorted({f for f in header if header.count(f) > 1})
         raise ValueError(f"{name}:{line}: duplicate column(s) {', '.join(dup)}")
@@ -250,6 +339,7 @@ def _check_header(header, name, line):
             f"{name}:{line}: missing column(s) {', '.join(missing)} (required "
             f"{', '.join(REQUIRED)})"
         )
+    return ignored
 
 
 def _reject_outliers(groups) -> set[int]:
@@ -385,9 +475,11 @@ def merge_readings(readings, source: str = "<readings>") -> Measurements:
     )
 
 
-def read_measurements(path: str | os.PathLike) -> Measurements:
-    """Read, validate and merge a measurement CSV (see the module docstring); SI units."""
-    return merge_readings(read_readings(path), source=os.fspath(path))
+def read_measurements(path: str | os.PathLike, x0_mm: float = 0.0,
+                      notes: list | None = None) -> Measurements:
+    """Read, validate and merge a long measurement CSV (see the module docstring); SI units.
+    Other layouts: :func:`diffguide.io.importers.read_any`."""
+    return merge_readings(read_readings(path, x0_mm, notes), source=os.fspath(path))
 
 
 def format_csv(rows: list[dict], columns: tuple[str, ...]) -> str:

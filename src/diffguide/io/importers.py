@@ -1,0 +1,257 @@
+r"""Measurement files in other layouts, read into the canonical readings (``diffguide import``).
+
+Two layouts are supported; :func:`detect_layout` tells them apart from the first line that is
+not blank or a ``#`` comment:
+
+**long** (canonical, :mod:`diffguide.io.measurements`): one reading per row, a header line with
+``position_mm``, ``point``, ``x_mm``, ``y_mm``, ``quantity``, ``value``, ``unit`` and optionally
+``sigma``, ``run``, ``direction``, ``instrument``, ``z_mm``, ``reference``.
+
+**wide** ("targets × runs", as laser-calibration software and ISO 230-2 reports lay a
+bidirectional positioning test out): one or more *blocks*, each a channel (one point, one
+quantity, one instrument)::
+
+    # any number of comment lines
+    point;P5
+    x_mm;0
+    y_mm;0
+    quantity;EBX
+    unit;µm/m
+    instrument;interferometer
+    target_mm;run1_fwd;run1_bwd;run2_fwd;run2_bwd
+    0;1,25;1,31;1,22;1,28
+    20;...
+
+- metadata lines ``key;value`` before the table: ``point``, ``x_mm``, ``y_mm`` (mm on the table
+  top from its centre), ``quantity`` (EXX ... ECX), ``unit`` (any unit of the long format) are
+  required; ``instrument``, ``sigma`` (standard uncertainty of one reading, in ``unit``) and
+  ``z_mm`` are optional. Each block states its own metadata: a metadata line after a table
+  starts the next block.
+- the table header: ``target_mm`` (or ``position_mm``), then one column per run and direction,
+  named ``run<k>_<dir>`` with ``<dir>`` one of ``fwd``/``forward``/``pos``/``positive``/``up``/``+``
+  or ``bwd``/``backward``/``neg``/``negative``/``down``/``-`` (``run<k>`` alone: forward). A
+  column ``run<k>_<dir>_ref`` is the *reference* reading of a differential level pair for that
+  run and direction: the reading used is measuring − reference (a column without its partner is
+  an error). Other columns (temperature, ...) are ignored with a note.
+- one row per target position; an empty cell is a missing reading.
+- ``target_mm`` is in **machine coordinates**: the table position is ``x = target − x0`` with
+  ``x0`` the ``--x0-mm`` option, by default the middle of the measured targets (so the middle of
+  the measured range is x = 0, the model's reference position). In the long layout
+  ``position_mm`` already *is* x (x0 = 0 unless given).
+
+Both layouts: separator ``,``, ``;`` or tab (sniffed from the first table line), a decimal comma
+is read when the separator is not ``,``; values, units and directions as in the long format
+(units also ``nm``, ``in``, ``mm/m``, ``deg``, ``arcmin``; directions also ``positive``/
+``negative``). Anything else fails with one line ``FILE:LINE: ...`` saying what was expected.
+"""
+
+import dataclasses
+import io
+import os
+import re
+
+import numpy as np
+
+from .measurements import (
+    ANGULAR_UNITS,
+    LINEAR_UNITS,
+    OPTIONAL,
+    REQUIRED,
+    Reading,
+    _parse_row,
+    _RowError,
+    merge_readings,
+    parse_readings,
+    read_text,
+    sniff_delimiter,
+    split_line,
+)
+
+LAYOUTS = ("auto", "long", "wide")
+WIDE_REQUIRED = ("point", "x_mm", "y_mm", "quantity", "unit")
+WIDE_OPTIONAL = ("instrument", "sigma", "z_mm")
+WIDE_TARGET = ("target_mm", "position_mm")
+_RUN_COLUMN = re.compile(
+    r"^run\s*_?\s*(?P<run>[0-9a-z]+?)(?:[_ ]?(?P<dir>forward|backward|positive|negative|fwd|bwd|"
+    r"pos|neg|up|down|\+|-))?(?P<ref>[_ ]ref(?:erence)?)?$"
+)
+_EXPECTED = (
+    "expected a long header (position_mm,point,x_mm,y_mm,quantity,value,unit[,...]) or a wide "
+    "block (metadata lines 'point;NAME', 'x_mm;..', 'y_mm;..', 'quantity;..', 'unit;..', then "
+    "'target_mm;run1_fwd;run1_bwd;...')"
+)
+
+
+def _content_lines(text: str):
+    for number, line in enumerate(text.splitlines(), start=1):
+        if line.strip() and not line.strip().startswith("#"):
+            yield number, line
+
+
+def detect_layout(text: str, name: str = "<text>") -> str:
+    """``"long"`` or ``"wide"`` from the first content line; ``ValueError`` naming the file and
+    line otherwise."""
+    for number, line in _content_lines(text):
+        fields = [f.lower() for f in split_line(line, sniff_delimiter(line), name, number)]
+        if "position_mm" in fields and "quantity" in fields:
+            return "long"
+        if fields and (fields[0] in WIDE_REQUIRED + WIDE_OPTIONAL or fields[0] in WIDE_TARGET):
+            return "wide"
+        raise ValueError(f"{name}:{number}: unknown layout: {_EXPECTED}")
+    raise ValueError(f"{name}:1: no content (only blank or comment lines): {_EXPECTED}")
+
+
+def _wide_columns(header, name, number, notes):
+    """``{column index: (run, direction, is_reference)}`` from a wide table header."""
+    cols, ignored = {}, []
+    for k, f in enumerate(header[1:], start=1):
+        m = _RUN_COLUMN.match(f.lower())
+        if not m:
+            ignored.append(f)
+            continue
+        d = (m["dir"] or "fwd").lower()
+        direction = "backward" if d in ("bwd", "backward", "neg", "negative", "down", "-") else (
+            "forward")
+        cols[k] = (m["run"], direction, bool(m["ref"]))
+    if not cols:
+        raise ValueError(f"{name}:{number}: wide table header without run columns (expected "
+                         f"{header[0]};run1_fwd;run1_bwd;... or run1_fwd_ref for a reference "
+                         "level)")
+    seen = {}
+    for k, key in cols.items():
+        if key in seen:
+            raise ValueError(f"{name}:{number}: columns {header[seen[key]]!r} and {header[k]!r} "
+                             "are the same run and direction")
+        seen[key] = k
+    for (run, d, ref) in list(seen):
+        if ref and (run, d, False) not in seen:
+            raise ValueError(f"{name}:{number}: reference column {header[seen[(run, d, ref)]]!r} "
+                             f"without its measuring column run{run}_{d[:3]}")
+    if ignored and notes is not None:
+        text = f"column(s) {', '.join(ignored)} ignored (not run columns)"
+        if not any(n.endswith(text) for n in notes):  # once per file, not per block
+            notes.append(f"{name}:{number}: {text}")
+    return cols, seen
+
+
+def parse_wide(text: str, name: str = "<text>", x0_mm: float | None = None,
+               notes: list | None = None) -> tuple[Reading, ...]:
+    """Validated readings of a wide file (module docstring); ``x0_mm`` ``None``: the middle of
+    the measured targets."""
+    readings, meta, meta_line = [], {}, {}
+    table = None  # (columns, lookup, header, header line) while inside a table
+    delimiter = None
+    for number, line in _content_lines(text):
+        if delimiter is None:
+            delimiter = sniff_delimiter(line)
+        fields = split_line(line, delimiter, name, number)
+        key = fields[0].lower()
+        if key in WIDE_REQUIRED + WIDE_OPTIONAL:
+            if table is not None:  # a new block
+                table, meta, meta_line = None, {}, {}
+            values = [f for f in fields[1:] if f]
+            if len(values) != 1:
+                raise ValueError(f"{name}:{number}: metadata line {key!r} needs one value "
+                                 f"('{key}{delimiter}VALUE')")
+            meta[key], meta_line[key] = values[0], number
+            continue
+        if key in WIDE_TARGET:
+            missing = [k for k in WIDE_REQUIRED if k not in meta]
+            if missing:
+                raise ValueError(f"{name}:{number}: wide block without metadata line(s) "
+                                 f"{', '.join(missing)} before its '{fields[0]}' header "
+                                 f"(required {', '.join(WIDE_REQUIRED)}; optional "
+                                 f"{', '.join(WIDE_OPTIONAL)})")
+            cols, lookup = _wide_columns(fields, name, number, notes)
+            table = (cols, lookup, fields, number)
+            continue
+        if table is None:
+            raise ValueError(f"{name}:{number}: unknown line {line.strip()[:40]!r} in a wide "
+                             f"file: {_EXPECTED}")
+        cols, lookup, header, hline = table
+        if len(fields) != len(header):
+            raise ValueError(f"{name}:{number}: {len(fields)} fields, the table header (line "
+                             f"{hline}) has {len(header)}")
+        for k, (run, direction, ref) in cols.items():
+            if ref or not fields[k]:
+                continue
+            row = {"position_mm": fields[0], "point": meta["point"], "x_mm": meta["x_mm"],
+                   "y_mm": meta["y_mm"], "quantity": meta["quantity"], "unit": meta["unit"],
+                   "value": fields[k], "sigma": meta.get("sigma", ""), "run": run,
+                   "direction": direction, "instrument": meta.get("instrument", ""),
+                   "z_mm": meta.get("z_mm", "")}
+            kref = lookup.get((run, direction, True))
+            if kref is not None:
+                if not fields[kref]:
+                    raise ValueError(f"{name}:{number}: column {header[kref]!r}: the reference "
+                                     f"reading is missing (column {header[k]!r} has one)")
+                row["reference"] = fields[kref]
+            try:
+                readings.append(_parse_row(row, number))
+            except _RowError as exc:
+                what = str(exc).replace("field 'value'", f"column {header[k]!r}").replace(
+                    "field 'position_mm'", f"column {header[0]!r}")
+                raise ValueError(f"{name}:{number}: {what}") from None
+    if not readings:
+        raise ValueError(f"{name}:1: no readings in the wide file: {_EXPECTED}")
+    if x0_mm is None:
+        pos = [r.position for r in readings]
+        x0_mm = (min(pos) + max(pos)) / 2 * 1e3
+        if notes is not None:
+            notes.append(f"{name}: targets shifted by x0 = {x0_mm:g} mm (the middle of the "
+                         "measured range; --x0-mm sets it)")
+    x0 = x0_mm * 1e-3
+    return tuple(dataclasses.replace(r, position=r.position - x0) for r in readings)
+
+
+def import_readings(path: str | os.PathLike, layout: str = "auto", x0_mm: float | None = None,
+                    notes: list | None = None) -> tuple[Reading, ...]:
+    """Readings of a measurement file in any supported layout (module docstring)."""
+    name = os.fspath(path)
+    text = read_text(path)
+    if layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+    if layout == "auto":
+        layout = detect_layout(text, name)
+    if layout == "wide":
+        return parse_wide(text, name, x0_mm, notes)
+    return parse_readings(text, name, x0_mm=x0_mm or 0.0, notes=notes)
+
+
+def read_any(path: str | os.PathLike, layout: str = "auto", x0_mm: float | None = None,
+             notes: list | None = None):
+    """Read and merge a measurement file in any supported layout
+    (:class:`~diffguide.inverse.data.Measurements`, SI units)."""
+    return merge_readings(import_readings(path, layout, x0_mm, notes), source=os.fspath(path))
+
+
+#: Units of the canonical file written by :func:`format_long`.
+CANONICAL_UNIT = {"linear": "um", "angular": "um/m"}
+
+
+def format_long(readings, comment: str = "") -> str:
+    """The canonical long CSV of ``readings`` (µm for EXX/EYX/EZX, µm/m for the angles; a
+    differential pair already reduced to measuring − reference; 6 decimals, i.e. 1 pm or
+    1 prad — below any instrument's resolution)."""
+    cols = [c for c in REQUIRED + OPTIONAL if c != "reference"]
+    out = io.StringIO()
+    for line in comment.splitlines():
+        out.write(f"# {line}\n")
+    out.write(",".join(cols) + "\n")
+    for r in readings:
+        kind = "linear" if r.unit in LINEAR_UNITS else "angular"
+        assert r.unit in (LINEAR_UNITS if kind == "linear" else ANGULAR_UNITS)
+        sigma = "" if r.sigma is None else f"{r.sigma * 1e6:.6f}"
+        point = f'"{r.point}"' if ("," in r.point or '"' in r.point) else r.point
+        out.write(f"{r.position * 1e3:.6f},{point},{r.xy[0] * 1e3:.6f},{r.xy[1] * 1e3:.6f},"
+                  f"{r.quantity},{r.value * 1e6:.6f},{CANONICAL_UNIT[kind]},{sigma},{r.run},"
+                  f"{r.direction},{r.instrument},{r.z * 1e3:.6f}\n")
+    return out.getvalue()
+
+
+def merged_table(meas) -> np.ndarray:
+    """``(n, 5)``: position (mm), point index, quantity index, value and σ (µm, µm/m) of merged
+    data, sorted — for comparing two files' merged data."""
+    a = np.column_stack([meas.position * 1e3, meas.point, meas.quantity, meas.value * 1e6,
+                         meas.sigma * 1e6])
+    return a[np.lexsort(a[:, 2::-1].T)]
