@@ -313,6 +313,7 @@ def run(args) -> int:
     from ..inverse import MachineFamily, fit_rails, identifiability
     from ..io.importers import read_any
     from ..machine.build import build_machine
+    from ..studies.iso230_2 import channel_figures
     from ._common import machine_config
 
     t_start = time.perf_counter()
@@ -376,6 +377,7 @@ def run(args) -> int:
             "sigma_sources": sorted(set(meas.sigma_source)),
             "rejected_reading_lines": list(meas.rejected),
         },
+        "iso230_2": channel_figures(meas),  # per channel where the runs allow (studies/iso230_2)
         "elastic": _summary(elastic, meas, seconds[""]),
         "identifiability": identifiability(elastic, machine),
     }
