@@ -12,68 +12,82 @@ and :mod:`.cli` are the edge. ``presets`` holds every value of the built-in mach
 The library never changes JAX's configuration on import: call :func:`enable_x64` first.
 """
 
+from importlib import import_module as _import_module
+
 from ._core import aliases as _aliases
 
 _aliases.install()  # old module paths (diffguide 0.1), see diffguide._core.aliases
 
-from ._core.precision import enable_x64 as enable_x64  # noqa: E402
-from ._core.precision import require_x64 as require_x64  # noqa: E402
-from .contact import AbstractContactLaw as AbstractContactLaw  # noqa: E402
-from .contact import HertzBall as HertzBall  # noqa: E402
-from .contact import PalmgrenRoller as PalmgrenRoller  # noqa: E402
-from .contact import PowerLaw as PowerLaw  # noqa: E402
-from .contact import RivinBall as RivinBall  # noqa: E402
-from .guideway import AbstractRailProfile as AbstractRailProfile  # noqa: E402
-from .guideway import BumpRail as BumpRail  # noqa: E402
-from .guideway import Carriage as Carriage  # noqa: E402
-from .guideway import CarriageSolution as CarriageSolution  # noqa: E402
-from .guideway import PaperPolynomialRail as PaperPolynomialRail  # noqa: E402
-from .guideway import SinusoidalRail as SinusoidalRail  # noqa: E402
-from .guideway import SplineRail as SplineRail  # noqa: E402
-from .guideway import StraightRail as StraightRail  # noqa: E402
-from .guideway import four_row_carriage as four_row_carriage  # noqa: E402
-from .guideway import majda2012_carriage as majda2012_carriage  # noqa: E402
-from .guideway import roller25_carriage as roller25_carriage  # noqa: E402
-from .guideway import solve_carriage as solve_carriage  # noqa: E402
-from .guideway import static_characteristics as static_characteristics  # noqa: E402
-from .inverse import fit_rails as fit_rails  # noqa: E402
-from .inverse import identifiability as identifiability  # noqa: E402
-from .io import default_config as default_config  # noqa: E402
-from .io import load_config as load_config  # noqa: E402
-from .io import read_rails_csv as read_rails_csv  # noqa: E402
-from .machine import ERROR_NAMES as ERROR_NAMES  # noqa: E402
-from .machine import JointErrors as JointErrors  # noqa: E402
-from .machine import Machine as Machine  # noqa: E402
-from .machine import MachineState as MachineState  # noqa: E402
-from .machine import build_machine as build_machine  # noqa: E402
-from .machine import equilibrium as equilibrium  # noqa: E402
-from .machine import error_field as error_field  # noqa: E402
-from .machine import joint_errors as joint_errors  # noqa: E402
-from .machine import majda2012_machine as majda2012_machine  # noqa: E402
-from .machine import paper_variant as paper_variant  # noqa: E402
-from .io.measurements import read_measurements as read_measurements  # noqa: E402
-from .studies import GaussianRailModel as GaussianRailModel  # noqa: E402
-from .studies import MonteCarloResult as MonteCarloResult  # noqa: E402
-from .studies import MountingTolerance as MountingTolerance  # noqa: E402
-from .studies import RailBatch as RailBatch  # noqa: E402
-from .studies import batched_sweep as batched_sweep  # noqa: E402
-from .studies import compensation_table as compensation_table  # noqa: E402
-from .studies import influence_map as influence_map  # noqa: E402
-from .studies import location_warnings as location_warnings  # noqa: E402
-from .studies import roll_spread as roll_spread  # noqa: E402
-from .studies import sample_rails as sample_rails  # noqa: E402
+__version__ = "0.2.0"
 
-__version__ = "0.1.0"
+#: the public API: name -> the module that defines it, imported on first use (so that
+#: ``import diffguide`` and ``diffguide --help`` do not import JAX)
+_LAZY = {
+    "enable_x64": "._core.precision",
+    "require_x64": "._core.precision",
+    "AbstractContactLaw": ".contact",
+    "HertzBall": ".contact",
+    "PalmgrenRoller": ".contact",
+    "PowerLaw": ".contact",
+    "RivinBall": ".contact",
+    "AbstractRailProfile": ".guideway",
+    "BumpRail": ".guideway",
+    "Carriage": ".guideway",
+    "CarriageSolution": ".guideway",
+    "PaperPolynomialRail": ".guideway",
+    "SinusoidalRail": ".guideway",
+    "SplineRail": ".guideway",
+    "StraightRail": ".guideway",
+    "four_row_carriage": ".guideway",
+    "majda2012_carriage": ".guideway",
+    "roller25_carriage": ".guideway",
+    "solve_carriage": ".guideway",
+    "static_characteristics": ".guideway",
+    "fit_rails": ".inverse",
+    "identifiability": ".inverse",
+    "default_config": ".io",
+    "load_config": ".io",
+    "read_rails_csv": ".io",
+    "ERROR_NAMES": ".machine",
+    "JointErrors": ".machine",
+    "Machine": ".machine",
+    "MachineState": ".machine",
+    "build_machine": ".machine",
+    "equilibrium": ".machine",
+    "error_field": ".machine",
+    "joint_errors": ".machine",
+    "majda2012_machine": ".machine",
+    "paper_variant": ".machine",
+    "read_measurements": ".io.measurements",
+    "GaussianRailModel": ".studies",
+    "MonteCarloResult": ".studies",
+    "MountingTolerance": ".studies",
+    "RailBatch": ".studies",
+    "batched_sweep": ".studies",
+    "compensation_table": ".studies",
+    "influence_map": ".studies",
+    "location_warnings": ".studies",
+    "roll_spread": ".studies",
+    "sample_rails": ".studies",
+}
 
-_aliases.forget()  # the package's own imports of old names leave no trace for users
+__all__ = list(_LAZY)
 
 
 def __getattr__(name: str):
-    """``diffguide.kinematics`` etc. as attributes (old flat modules; deprecated)."""
+    """The public API on first use; ``diffguide.kinematics`` etc. (old flat modules,
+    deprecated)."""
+    if name in _LAZY:
+        value = getattr(_import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        _aliases.forget()  # the package's own imports of old names leave no trace for users
+        return value
     old = f"{__name__}.{name}"
     if old in _aliases.MOVED:
-        import importlib
-
         _aliases.deprecated(old, stacklevel=2)
-        return importlib.import_module(_aliases.MOVED[old])
+        return _import_module(_aliases.MOVED[old])
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

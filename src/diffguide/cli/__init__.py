@@ -1,7 +1,9 @@
 """Command-line interface: ``diffguide <command> ...``.
 
 Each command lives in its own module exposing ``add_parser(subparsers)`` (which registers the
-sub-command and sets ``func``). The CLI enables float64 before anything is computed.
+sub-command and sets ``func``); :mod:`._common` adds the flags all commands share. Parsing
+imports neither JAX nor matplotlib (``--help`` and ``--version`` answer at once); the command
+then sets up JAX (float64, the compilation cache, see :func:`._common.prepare_runtime`).
 """
 
 import argparse
@@ -9,20 +11,71 @@ import importlib
 import importlib.util
 import sys
 
-_COMMANDS = ("config", "stiffness", "table", "simulate", "fit", "montecarlo")
+from ._common import (
+    EXIT_BAD_INPUT,
+    EXIT_CODES,
+    EXIT_INTERNAL,
+    HelpFormatter,
+    add_common_arguments,
+    normalise_mesh,
+    prepare_runtime,
+)
+
+#: command -> its module in diffguide.cli
+_COMMANDS = {
+    "config": "config",
+    "stiffness": "stiffness",
+    "table": "table",
+    "simulate": "simulate",
+    "import": "import_",
+    "fit": "fit",
+    "montecarlo": "montecarlo",
+}
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    from .. import __version__
+
+    deps = []
+    for dist in ("jax", "jaxlib", "equinox", "optimistix", "lineax"):
+        try:
+            deps.append(f"{dist} {version(dist)}")
+        except PackageNotFoundError:
+            deps.append(f"{dist} missing")
+    return f"diffguide {__version__} ({', '.join(deps)}; Python {sys.version.split()[0]})"
+
+
+class _Version(argparse.Action):
+    """``--version``: one unwrapped line (diffguide, its numerical stack, Python)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, **kw):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(_version())
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="diffguide",
         description="Linear guideways under an elastic machine-tool table: rail errors -> "
-        "joint kinematic errors (SI inside; mm, µm, µm/m at the edges).",
+        "joint kinematic errors, and back (SI inside; mm, µm, µm/m at the edges). "
+        "'diffguide COMMAND --help' lists a command's options.",
+        epilog=EXIT_CODES,
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument(
+        "-V", "--version", action=_Version, help="print the versions of diffguide and its stack"
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in _COMMANDS:
-        if importlib.util.find_spec(f"diffguide.cli.{name}") is None:  # not built yet
+    for name, module in _COMMANDS.items():
+        if importlib.util.find_spec(f"diffguide.cli.{module}") is None:  # not built yet
             continue
-        importlib.import_module(f"diffguide.cli.{name}").add_parser(sub)
+        importlib.import_module(f"diffguide.cli.{module}").add_parser(sub)
+        add_common_arguments(sub.choices[name], name)
     return parser
 
 
@@ -43,19 +96,32 @@ def _glue_negative_ranges(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import matplotlib
-
-    from .._core.precision import enable_x64
-
-    matplotlib.use("Agg")  # files only: no display needed
-    enable_x64()
+    """Run one command; returns the exit status (see ``EXIT_CODES``)."""
     parser = build_parser()
     args = parser.parse_args(_glue_negative_ranges(sys.argv[1:] if argv is None else list(argv)))
     try:
+        normalise_mesh(args, args.command)
+        prepare_runtime(args)
+        import matplotlib
+
+        matplotlib.use("Agg")  # files only: no display needed
         return int(args.func(args) or 0)
     except (ValueError, OSError) as exc:  # bad input: one line, no traceback
         print(f"diffguide {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"diffguide {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception:  # a bug: the traceback, and exit status 1
+        import traceback
+
+        traceback.print_exc()
+        print(
+            f"diffguide {args.command}: internal error (exit status 1); please report it with "
+            "the traceback above",
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":

@@ -1,14 +1,73 @@
-"""Arguments shared by the commands: the machine (``--preset`` / ``--config``)."""
+"""What every command shares: the machine (``--preset`` / ``--config``), ``--quiet``, the mesh
+(``--mesh NXxNY``), the JAX compilation cache, the help layout and the exit codes.
+
+Nothing here imports JAX or matplotlib: ``diffguide --help`` must answer at once.
+"""
+
+import argparse
+import os
+import sys
+import warnings
+from pathlib import Path
 
 PRESETS = ("majda2012",)
 
+#: exit statuses of every command (also in the README and each ``--help`` epilogue)
+EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_NOT_CONVERGED = 0, 1, 2, 3
+
+EXIT_CODES = """\
+exit status:
+  0  success
+  2  bad input or options (one line on stderr naming the file, line/key and allowed range;
+     nothing written)
+  3  a solve did not converge (fit: results written and flagged in report.json; other
+     commands: the positions are named and nothing is written)
+  1  internal error (a bug: please report it with the traceback)"""
+
+#: commands that build the table mesh, and so take ``--mesh``
+MESH_COMMANDS = ("table", "simulate", "fit", "montecarlo")
+
+DEFAULT_CACHE_DIR = Path("~/.cache/diffguide/jax")
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Wraps paragraphs, keeps indented blocks (the exit-code table) as written, and shows a
+    default once, only where the help text does not already state it."""
+
+    def _fill_text(self, text, width, indent):
+        out = []
+        for para in text.split("\n\n"):
+            if "\n " in para or para.startswith(" ") or para.startswith("exit status"):
+                out.append("\n".join(indent + line for line in para.splitlines()))
+            else:
+                out.append(super()._fill_text(para, width, indent))
+        return "\n\n".join(out)
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if (
+            "%(default)" in text
+            or "default" in text.lower()
+            or action.default in (None, False, True, argparse.SUPPRESS)
+            or action.option_strings == []
+        ):
+            return text
+        return text + " (default: %(default)s)"
+
 
 def add_machine_arguments(p) -> None:
-    p.add_argument("--preset", default="majda2012", choices=PRESETS,
-                   help="built-in machine (the paper's vertical machining centre)")
-    p.add_argument("--config", metavar="MACHINE.toml",
-                   help="machine configuration file (TOML, units in the key names; see "
-                   "'diffguide config'); overrides --preset")
+    p.add_argument(
+        "--preset",
+        default="majda2012",
+        choices=PRESETS,
+        help="built-in machine (the paper's vertical machining centre)",
+    )
+    p.add_argument(
+        "--config",
+        metavar="MACHINE.toml",
+        help="machine configuration file (TOML, units in the key names; see "
+        "'diffguide config'); overrides --preset",
+    )
 
 
 def machine_config(args) -> dict:
@@ -18,3 +77,114 @@ def machine_config(args) -> dict:
     if getattr(args, "config", None):
         return load_config(args.config)
     return default_config()
+
+
+def parse_mesh_text(text: str) -> tuple[int, int]:
+    """``"20x10"`` → ``(20, 10)``; a clear ``ValueError`` otherwise."""
+    parts = str(text).lower().replace("×", "x").split("x")
+    try:
+        nx, ny = (int(v) for v in parts)
+    except ValueError:
+        raise ValueError(f"--mesh must be NXxNY with integers, e.g. 20x10, got {text!r}") from None
+    if nx < 1 or ny < 1:
+        raise ValueError(f"--mesh: both divisions must be >= 1, got {text!r}")
+    return nx, ny
+
+
+def _has(p: argparse.ArgumentParser, flag: str) -> bool:
+    return flag in p._option_string_actions
+
+
+def add_common_arguments(p: argparse.ArgumentParser, name: str) -> None:
+    """Give the sub-command ``name`` the flags every command shares (those it does not define
+    itself), the help layout and the exit-code epilogue."""
+    p.formatter_class = HelpFormatter
+    p.epilog = EXIT_CODES if not p.epilog else p.epilog + "\n\n" + EXIT_CODES
+    g = p.add_argument_group("common options")
+    if not _has(p, "--quiet"):
+        g.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+    if name in MESH_COMMANDS:
+        if not _has(p, "--mesh"):
+            g.add_argument(
+                "--mesh",
+                metavar="NXxNY",
+                default=None,
+                help="table mesh: uniform divisions along X and Y before the footprint lines "
+                "(default: the machine's, 20x10 for majda2012)",
+            )
+        for axis in ("nx", "ny"):  # 0.1 spellings, kept for one release
+            if not _has(p, f"--{axis}"):
+                g.add_argument(f"--{axis}", type=int, default=None, help=argparse.SUPPRESS)
+    g.add_argument(
+        "--cache-dir",
+        metavar="DIR",
+        default=None,
+        help="persistent JAX compilation cache: a second run of the same command compiles "
+        "almost nothing (default: $DIFFGUIDE_CACHE_DIR, else ~/.cache/diffguide/jax)",
+    )
+    g.add_argument("--no-cache", action="store_true", help="do not use the compilation cache")
+
+
+def normalise_mesh(args, name: str) -> None:
+    """One mesh for the command: ``--mesh NXxNY`` sets ``args.nx``/``args.ny``; the deprecated
+    ``--nx``/``--ny`` set ``args.mesh`` (with a warning); ``ValueError`` when both disagree."""
+    if name not in MESH_COMMANDS:
+        return
+    mesh, nx, ny = getattr(args, "mesh", None), getattr(args, "nx", None), getattr(args, "ny", None)
+    if nx is not None or ny is not None:
+        print(
+            f"diffguide {name}: warning: --nx/--ny are deprecated; use --mesh NXxNY",
+            file=sys.stderr,
+        )
+        if mesh is not None:
+            raise ValueError("give the mesh once: --mesh NXxNY (not with --nx/--ny)")
+        for flag, v in (("--nx", nx), ("--ny", ny)):
+            if v is not None and v < 1:
+                raise ValueError(f"{flag} must be an integer >= 1, got {v}")
+        if nx is not None and ny is not None:
+            args.mesh = f"{nx}x{ny}"
+        return
+    if mesh is not None:
+        args.nx, args.ny = parse_mesh_text(mesh)
+
+
+def cache_dir(args) -> Path | None:
+    """The compilation cache folder chosen by ``--cache-dir``, ``$DIFFGUIDE_CACHE_DIR`` or the
+    default; ``None`` with ``--no-cache`` (or ``DIFFGUIDE_CACHE_DIR=""``)."""
+    if getattr(args, "no_cache", False):
+        return None
+    text = getattr(args, "cache_dir", None)
+    if text is None:
+        text = os.environ.get("DIFFGUIDE_CACHE_DIR", str(DEFAULT_CACHE_DIR))
+    if not text:
+        return None
+    return Path(text).expanduser()
+
+
+def prepare_runtime(args) -> None:
+    """Set up JAX for a command-line run, before it is imported.
+
+    - ``EQX_ON_ERROR=nan`` unless the user set it: equinox's default error checks are host
+      callbacks, which JAX refuses to store in the persistent cache, so without it a second run
+      recompiles everything. The consequence: a check that fails inside compiled code gives NaN
+      instead of an exception, and the solvers report NaN as non-convergence (exit 3).
+    - the persistent compilation cache (:func:`cache_dir`), when this process starts JAX itself
+      or the user named a folder explicitly.
+    - float64 (micrometres on metre-scale geometry need it).
+    """
+    if "equinox" not in sys.modules:
+        os.environ.setdefault("EQX_ON_ERROR", "nan")
+    jax_was_loaded = "jax" in sys.modules
+    folder = cache_dir(args)
+    import jax
+
+    if folder is not None and (not jax_was_loaded or getattr(args, "cache_dir", None)):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            warnings.warn(f"compilation cache disabled: {exc}", stacklevel=2)
+        else:
+            jax.config.update("jax_compilation_cache_dir", str(folder))
+    from .._core.precision import enable_x64
+
+    enable_x64()

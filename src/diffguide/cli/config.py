@@ -1,6 +1,5 @@
 """``diffguide config``: write a machine configuration (TOML) to standard output or a file."""
 
-import argparse
 import sys
 
 from ._common import PRESETS
@@ -13,10 +12,11 @@ def add_parser(sub) -> None:
         description="Print every parameter of a machine as TOML, units in the key names "
         "(mm, GPa, N, kg/m3, degrees). Edit it and pass it to any command with --config FILE; "
         "with --check FILE, validate a file instead.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     p.add_argument("--preset", default="majda2012", choices=PRESETS, help="machine to write")
-    p.add_argument("--out", help="write to this file instead of standard output")
+    p.add_argument(
+        "--out", metavar="FILE.toml", help="write to this file instead of standard output"
+    )
     p.add_argument("--check", metavar="MACHINE.toml", help="validate this file and report")
     p.set_defaults(func=run)
 
@@ -27,7 +27,8 @@ def run(args) -> int:
 
     if args.check:
         cfg = load_config(args.check)
-        print(f"{args.check}: valid ({len(cfg['points'])} control points)")
+        if not args.quiet:
+            print(f"{args.check}: valid ({len(cfg['points'])} control points)")
         return 0
     text = dump_config(default_config(), title=args.preset)
     if args.out:

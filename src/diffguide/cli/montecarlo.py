@@ -17,9 +17,12 @@ _PLANES = {
 }
 
 
-def add_parser(sub) -> None:
-    from ..studies.random_rails import MOUNTING_CLASSES
+# diffguide.studies.random_rails.MOUNTING_CLASSES, named here so that --help imports no JAX
+# (tests/test_cli_common.py checks they agree)
+MOUNTING_CHOICES = ("none", "precision", "size25-ZB", "size25-ZA", "size25-ZO")
 
+
+def add_parser(sub) -> None:
     p = sub.add_parser(
         "montecarlo",
         help="distribution of the joint-error ranges and corner roll differences for random rails",
@@ -30,7 +33,7 @@ def add_parser(sub) -> None:
         "between each pair of corners over the sweep (µrad).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    p.add_argument("--preset", default="majda2012", choices=("majda2012",), help="machine")
+    add_machine_arguments(p)
     p.add_argument("--samples", type=int, default=1000, help="number of random rail pairs")
     p.add_argument("--rail-rms-um", type=float, default=5.0,
                    help="RMS straightness deviation σ of each rail and plane (µm)")
@@ -40,11 +43,12 @@ def add_parser(sub) -> None:
                    help="covariance: se = squared exponential exp(-τ²/2ℓ²); matern52 = Matérn 5/2")
     p.add_argument("--planes", choices=tuple(_PLANES), default="both",
                    help="planes with straightness error")
-    p.add_argument("--mounting", choices=tuple(MOUNTING_CLASSES), default="none",
+    p.add_argument("--mounting", choices=MOUNTING_CHOICES, default="none",
                    help="mounting tolerance class of rail 2 relative to rail 1 (parallelism, "
                    "height difference; size-25 catalogue values)")
-    p.add_argument("--positions", default="-350:350:71",
-                   help="table positions START:STOP:COUNT (mm)")
+    p.add_argument("--positions", default=None,
+                   help="table positions START:STOP:COUNT (mm); default: the machine's whole "
+                   "stroke at 71 positions")
     p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
     p.add_argument("--mesh", default="20x10", help="table mesh NXxNY (elements)")
     p.add_argument("--chunk", type=int, default=None,
@@ -135,24 +139,36 @@ def run(args) -> int:
     if args.cpu_devices is None or args.cpu_devices > 1:
         split_cpu_into_devices(args.cpu_devices)  # before the first array; no-op afterwards
 
-    from ..machine.majda2012 import STROKE, majda2012_machine
+    from ..inverse.fit import visited_range
+    from ..machine.build import build_machine
     from ..studies.montecarlo import batched_sweep
-    from ..studies.random_rails import GaussianRailModel, sample_rails
+    from ..studies.random_rails import GaussianRailModel, default_knots, sample_rails
+    from ._common import machine_config
 
-    positions = parse_positions(args.positions)
-    if np.max(np.abs(positions)) > STROKE / 2 + 1e-12:
+    cfg = machine_config(args)
+    positions = default_positions(cfg) if args.positions is None else parse_positions(
+        args.positions)
+    half = cfg["machine"]["stroke_mm"] / 2
+    if np.max(np.abs(positions)) * 1e3 > half + 1e-9:
         raise ValueError(
-            f"--positions must lie within the ±{STROKE / 2 * 1e3:.0f} mm stroke, "
-            f"got {args.positions!r}"
+            f"--positions must lie within the ±{half:g} mm stroke of "
+            f"{args.config or args.preset}, got {args.positions!r}"
         )
     nx, ny = parse_mesh(args.mesh)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     model = GaussianRailModel(
         args.rail_rms_um * 1e-6, args.corr_mm * 1e-3, _KERNELS[args.kernel], _PLANES[args.planes]
     )
-    rails = sample_rails(args.seed, args.samples, model, args.mounting)
-    say(f"building the {args.preset} machine (table mesh {nx}x{ny}) ...")
-    machine = majda2012_machine(nx=nx, ny=ny)
+    name = args.config or args.preset
+    say(f"building the {name} machine (table mesh {nx}x{ny}) ...")
+    machine = build_machine(cfg, nx=nx, ny=ny)
+    # the rails must cover what the elements visit: the default ±0.6 m knots (majda2012) or,
+    # for a longer machine, the visited range with a margin
+    lo, hi = visited_range(machine, positions)
+    knots = default_knots(model.correlation_length)
+    if lo < knots[0] or hi > knots[0] + (knots[2] - 3) * knots[1]:
+        knots = default_knots(model.correlation_length, start=lo - 0.05, end=hi + 0.05)
+    rails = sample_rails(args.seed, args.samples, model, args.mounting, knots=knots)
     if args.rigid_table:
         machine = machine.with_rigid_table()
     import jax
@@ -181,7 +197,7 @@ def run(args) -> int:
 
         table = "rigid table" if args.rigid_table else "elastic table"
         title = (
-            f"{args.preset}, {table}: rails σ = {args.rail_rms_um:g} µm, ℓ = {args.corr_mm:g} mm "
+            f"{name}, {table}: rails σ = {args.rail_rms_um:g} µm, ℓ = {args.corr_mm:g} mm "
             f"({args.kernel}, {args.planes}), mounting {args.mounting}, {len(positions)} positions"
         )
         fig = plot_monte_carlo(result, title)

@@ -1,6 +1,5 @@
 """``diffguide stiffness``: a carriage's deflection against load (the paper's Fig. 3)."""
 
-import argparse
 
 import numpy as np
 
@@ -16,7 +15,6 @@ def add_parser(sub) -> None:
         description="Deflection of one runner block on a straight rail under downward, upward "
         "and lateral loads applied at the centre of its top face (rotations held, as in "
         "catalogue stiffness measurements). Writes CSV columns direction,load_N,deflection_um.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     p.add_argument(
         "--preset",
@@ -25,12 +23,17 @@ def add_parser(sub) -> None:
         help="carriage: majda2012 (size-25 ball block, Hertz), majda2012-rivin (same block, "
         "the paper's Rivin contact law), roller25 (size-25 roller block)",
     )
-    p.add_argument("--config", metavar="MACHINE.toml",
-                   help="take the carriage from a machine configuration file (overrides --preset)")
-    p.add_argument("--max-load", type=float, default=10000.0, help="largest load (N)")
-    p.add_argument("--steps", type=int, default=41, help="number of loads from 0 to --max-load")
-    p.add_argument("--out", required=True, help="output CSV file")
-    p.add_argument("--plot", help="output figure (PNG)")
+    p.add_argument(
+        "--config",
+        metavar="MACHINE.toml",
+        help="take the carriage from a machine configuration file (overrides --preset)",
+    )
+    p.add_argument("--max-load", type=float, default=10000.0, metavar="N", help="largest load (N)")
+    p.add_argument(
+        "--steps", type=int, default=41, metavar="K", help="number of loads from 0 to --max-load"
+    )
+    p.add_argument("--out", required=True, metavar="FILE.csv", help="output CSV file")
+    p.add_argument("--plot", metavar="FILE.png", help="output figure (PNG)")
     p.set_defaults(func=run)
 
 
@@ -78,7 +81,8 @@ def run(args) -> int:
         lines += [f"{name},{f:.6g},{d:.6f}" for f, d in zip(loads, defl_um)]
     atomic_write_text(args.out, "\n".join(lines) + "\n")
     stiff = {n: loads[1] / d[1] for n, (_, d) in curves.items()}
-    print(
+    say = (lambda *a: None) if args.quiet else print
+    say(
         f"{args.preset}: preload approach g0 = {float(carriage.preload_approach) * 1e6:.3f} µm, "
         f"initial stiffness "
         + ", ".join(f"{n} {s:.0f} N/µm" for n, s in stiff.items())
@@ -89,5 +93,5 @@ def run(args) -> int:
 
         fig = plot_static_characteristic(curves, title=f"{args.preset}: static characteristic")
         atomic_savefig(fig, args.plot, dpi=120)
-        print(f"wrote {args.plot}")
+        say(f"wrote {args.plot}")
     return 0

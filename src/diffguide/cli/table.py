@@ -15,14 +15,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "report the sag under gravity. Units: mm for geometry, µm / µrad for deflections.",
     )
     add_machine_arguments(p)
-    p.add_argument("--nx", type=int, default=None,
-                   help="uniform divisions along X (rails) before footprint lines (default 20)")
-    p.add_argument("--ny", type=int, default=None,
-                   help="uniform divisions along Y (across) before footprint lines (default 10)")
-    p.add_argument("--plot", metavar="FILE.png", default=None,
-                   help="write the mesh and the magnified deflected shape (colour: uz in µm)")
-    p.add_argument("--out", metavar="FILE.csv", default=None,
-                   help="write node deflections: x, y in mm; ux, uy, uz in µm; rx, ry, rz in µrad")
+    p.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        default=None,
+        help="write the mesh and the magnified deflected shape (colour: uz in µm)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="FILE.csv",
+        default=None,
+        help="write node deflections: x, y in mm; ux, uy, uz in µm; rx, ry, rz in µrad",
+    )
     p.set_defaults(func=run)
     return p
 
@@ -33,38 +37,40 @@ def run(args) -> int:
     from ..io.files import atomic_write_text
     from ..machine.build import table_from_config
 
-    for name in ("nx", "ny"):
-        v = getattr(args, name)
-        if v is not None and v < 1:
-            raise ValueError(f"--{name} must be an integer >= 1, got {v}")
+    say = (lambda *a: None) if args.quiet else print
     model = table_from_config(machine_config(args), nx=args.nx, ny=args.ny, nut=False)
     cond = model.condense()
     u = np.asarray(cond.node_u0)  # the four carriage reference points held at u = 0
     pts = np.asarray(cond.r0).reshape(-1, 6)
     mesh = model.mesh
     sag = -u[:, 2].min() * 1e6
-    name = args.config or args.preset
-    print(f"table {name}: {len(mesh.xs) - 1} x {len(mesh.ys) - 1} shells, "
-          f"{mesh.n_nodes} nodes, {mesh.n_dof} DOF; carriages fixed, gravity "
-          f"{model.gravity} m/s²")
-    print(f"max sag under gravity: {sag:.3f} µm")
+    machine_name = args.config or args.preset
+    say(
+        f"table {machine_name}: {len(mesh.xs) - 1} x {len(mesh.ys) - 1} shells, "
+        f"{mesh.n_nodes} nodes, {mesh.n_dof} DOF; carriages fixed, gravity "
+        f"{model.gravity} m/s²"
+    )
+    say(f"max sag under gravity: {sag:.3f} µm")
     for name, row in zip(model.point_names, pts):
-        print(f"  {name}: uz = {row[2] * 1e6:+.3f} µm, rx = {row[3] * 1e6:+.3f} µrad, "
-              f"ry = {row[4] * 1e6:+.3f} µrad")
+        say(
+            f"  {name}: uz = {row[2] * 1e6:+.3f} µm, rx = {row[3] * 1e6:+.3f} µrad, "
+            f"ry = {row[4] * 1e6:+.3f} µrad"
+        )
     if args.out:
         lines = ["node,x_mm,y_mm,ux_um,uy_um,uz_um,rx_urad,ry_urad,rz_urad"]
         for k, (p, d) in enumerate(zip(mesh.nodes, u)):
             vals = [p[0] * 1e3, p[1] * 1e3, *(d * 1e6)]
             lines.append(f"{k}," + ",".join(f"{v:.6g}" for v in vals))
         atomic_write_text(args.out, "\n".join(lines) + "\n")
-        print(f"wrote {args.out}")
+        say(f"wrote {args.out}")
     if args.plot:
         from ..io.files import atomic_savefig
         from ..plotting.table import plot_table
 
-        fig = plot_table(model, u, title=f"{name}: sag under gravity on four carriages, "
-                         f"max {sag:.2f} µm")
+        fig = plot_table(
+            model, u, title=f"{machine_name}: sag under gravity on four carriages, max {sag:.2f} µm"
+        )
         atomic_savefig(fig, args.plot, dpi=120)
-        print(f"wrote {args.plot}")
+        say(f"wrote {args.plot}")
     sys.stdout.flush()
     return 0
