@@ -175,6 +175,10 @@ class Case:
             C); ``None`` = the preset's (50 mm, 8 %) — set for the wrong-structure cases.
         drift: RMS of a linear drift in time over each run, in reading σ per run (0: none).
         outliers: this many readings off by ``outlier_sigma`` reading σ (random sign).
+        lead_um: the feed screw's lead error (µm) as a function of the position (mm), added to
+            every EXX reading (the fitted model has no lead error). z_mm: ``(point, z)`` pairs:
+            that point's optics sit ``z`` mm above the table top (Abbe: EXX + z·EBX,
+            EYX − z·EAX), written in the ``z_mm`` column.
         seed: noise seed.
     """
 
@@ -191,6 +195,8 @@ class Case:
     drift: float = 0.0
     outliers: int = 0
     outlier_sigma: float = 10.0
+    lead_um: Callable | None = None
+    z_mm: tuple[tuple[str, float], ...] = ()
     seed: int = 0
 
     @property
@@ -319,6 +325,26 @@ def preload_13pct() -> Case:
     return _case(preload_13pct, truth=BUNDLED_TRUTH, preload=0.13, seed=1616)
 
 
+#: The bundled layout plus a laser reading positioning (EXX) at P6, its optics 100 mm above the
+#: table, and a level beside the interferometer at the centre (two instruments reading pitch at
+#: P5).
+WITH_POSITIONING: tuple[Sensor, ...] = BUNDLED + (
+    ("P5", 0.0, 0.0, "level", ("EBX",)),
+    ("P6", 0.0, 150.0, "interferometer", ("EXX",)),
+)
+
+
+def positioning_lead_error() -> Case:
+    """A positioning channel with the screw's lead error (12 µm over the stroke plus a 250 mm
+    wave), optics 100 mm above the table, and a level and an interferometer both reading pitch
+    at the centre: the lead term, the Abbe term and instrument-keyed channels."""
+    def lead(x_mm):
+        return 12.0 * (x_mm / 350.0) ** 2 + 2.0 * np.sin(2 * np.pi * x_mm / 250.0)
+
+    return _case(positioning_lead_error, truth=BUNDLED_TRUTH, sensors=WITH_POSITIONING,
+                 lead_um=lead, z_mm=(("P6", 100.0),), seed=1717)
+
+
 #: Every case, by name, in table order.
 CASES: dict[str, Callable[[], Case]] = {
     f.__name__: f
@@ -335,6 +361,7 @@ CASES: dict[str, Callable[[], Case]] = {
         positions_141,
         rms_20um,
         rms_0p2um,
+        positioning_lead_error,
         thickness_30mm,
         thickness_70mm,
         preload_2pct,
@@ -418,9 +445,10 @@ def readings_csv(case: Case, errors: np.ndarray | None = None, noise: bool = Tru
     n = len(pos)
     dirs = ("forward", "backward") if case.bidirectional else ("forward",)
     steps = n * len(dirs)
+    names = list(case.points())  # the model's points (a point may carry several instruments)
     channels = [
-        (p, name, x, y, inst, q)
-        for p, (name, x, y, inst, qs) in enumerate(case.sensors)
+        (names.index(name), name, x, y, inst, q)
+        for name, x, y, inst, qs in case.sensors
         for q in qs
     ]
     rows = []
@@ -433,20 +461,28 @@ def readings_csv(case: Case, errors: np.ndarray | None = None, noise: bool = Tru
                 for c, (p, name, x, y, inst, q) in enumerate(channels):
                     sig = _sigma(inst, q)
                     v = errors[i, p, QUANTITIES.index(q)]
+                    z = dict(case.z_mm).get(name, 0.0)
+                    if q == "EXX":  # µm + mm · µm/m · 1e-3
+                        v += z * 1e-3 * errors[i, p, QUANTITIES.index("EBX")]
+                        if case.lead_um is not None:
+                            v += case.lead_um(pos[i])
+                    elif q == "EYX":
+                        v -= z * 1e-3 * errors[i, p, QUANTITIES.index("EAX")]
                     if noise:
                         v += sig * (rng.normal() + rate[c] * t / max(steps - 1, 1))
                     unit = "um" if q in LINEAR else "um/m"
-                    rows.append([pos[i], name, x, y, q, v, unit, run, d, inst, sig])
+                    rows.append([pos[i], name, x, y, q, v, unit, run, d, inst, sig, z])
                 t += 1
     if noise and case.outliers:
         for k in rng.choice(len(rows), case.outliers, replace=False):
             rows[k][5] += case.outlier_sigma * rows[k][10] * rng.choice((-1.0, 1.0))
     lines = [
         "# diffguide battery case " + case.name,
-        "position_mm,point,x_mm,y_mm,quantity,value,unit,run,direction,instrument",
+        "position_mm,point,x_mm,y_mm,quantity,value,unit,run,direction,instrument,z_mm",
     ]
-    for p, name, x, y, q, v, unit, run, d, inst, _ in rows:
-        lines.append(f"{p:.3f},{name},{x:.1f},{y:.1f},{q},{v:.5f},{unit},{run},{d},{inst}")
+    for p, name, x, y, q, v, unit, run, d, inst, _, z in rows:
+        lines.append(f"{p:.3f},{name},{x:.1f},{y:.1f},{q},{v:.5f},{unit},{run},{d},{inst},"
+                     f"{z:g}")
     return "\n".join(lines) + "\n"
 
 
