@@ -228,6 +228,7 @@ def condense(
             f"ref_xy must have shape (n_patches, 2) = ({len(patches)}, 2), got {np.shape(ref_xy)}"
         )
     pts = np.array(points, dtype=float).reshape(-1, 2)
+    nat = _grid_natural_coords(mesh, quads, pts) if nodes is None else None
     if method == "dense":
         layout = None
     elif method == "banded":
@@ -249,7 +250,28 @@ def condense(
         quads,
         pxyz,
         pts,
+        nat,
         layout,
+    )
+
+
+def _grid_natural_coords(mesh: TableMesh, quads: np.ndarray, pts: np.ndarray):
+    """Natural coordinates (ξ, η) (n_pts, 2) of the points in their quads, in closed form on the
+    mesh's own flat, axis-aligned grid (``ξ = 2 (x - x_i) / (x_{i+1} - x_i) - 1``; the same as
+    :func:`~diffguide.fe.shell.shell_natural_coords`, without a Newton solve to compile), or
+    ``None`` when ``mesh.nodes`` is not that grid."""
+    xs, ys = np.asarray(mesh.xs), np.asarray(mesh.ys)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    grid = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], axis=1)
+    if np.shape(mesh.nodes) != grid.shape or not np.array_equal(np.asarray(mesh.nodes), grid):
+        return None
+    i, j = np.divmod(quads, len(ys) - 1)
+    return np.stack(
+        [
+            2.0 * (pts[:, 0] - xs[i]) / (xs[i + 1] - xs[i]) - 1.0,
+            2.0 * (pts[:, 1] - ys[j]) / (ys[j + 1] - ys[j]) - 1.0,
+        ],
+        axis=1,
     )
 
 
@@ -267,6 +289,7 @@ def _condense(
     quads,
     pxyz,
     pts,
+    nat,
     layout=None,
 ):
     xyz = jnp.asarray(mesh.nodes if nodes is None else nodes, dtype=float)
@@ -321,14 +344,14 @@ def _condense(
     qn = jnp.asarray(mesh.quads)[quads]  # (n_pts, 4)
     exyz = xyz[qn]
 
-    def point_map(ex, p):
-        s = shell_natural_coords(ex, p)
+    def point_map(ex, p, s):
+        s = shell_natural_coords(ex, p) if s is None else s
         N = shell_shape(s[0], s[1])
         R, _ = shell_frame(ex)
         return N[:, None, None] * _rigid(0.5 * t * R[2])  # (4, 6, 6)
 
     if pts.shape[0] > 0:
-        W = jax.vmap(point_map)(exyz, jnp.asarray(pts))  # (n_pts, 4, 6, 6)
+        W = jax.vmap(point_map)(exyz, jnp.asarray(pts), nat)  # (n_pts, 4, 6, 6)
         Rm = jnp.einsum("pkab,pkbm->pam", W, node_modes[qn]).reshape(-1, m)
         r0 = jnp.einsum("pkab,pkb->pa", W, node_u0[qn]).reshape(-1)
     else:
