@@ -7,7 +7,8 @@ import time
 import numpy as np
 
 from ..io.files import atomic_savefig, atomic_write_text
-from .simulate import parse_mesh, parse_positions
+from ._common import add_machine_arguments
+from .simulate import default_positions, parse_mesh, parse_positions
 
 _KERNELS = {"se": "squared_exponential", "matern52": "matern52"}
 _PLANES = {
