@@ -135,7 +135,7 @@ def _wide_columns(header, name, number, notes):
 
 
 def parse_wide(text: str, name: str = "<text>", x0_mm: float | None = None,
-               notes: list | None = None) -> tuple[Reading, ...]:
+               notes: list | None = None, info: dict | None = None) -> tuple[Reading, ...]:
     """Validated readings of a wide file (module docstring); ``x0_mm`` ``None``: the middle of
     the measured targets."""
     readings, meta, meta_line = [], {}, {}
@@ -200,13 +200,16 @@ def parse_wide(text: str, name: str = "<text>", x0_mm: float | None = None,
         if notes is not None:
             notes.append(f"{name}: targets shifted by x0 = {x0_mm:g} mm (the middle of the "
                          "measured range; --x0-mm sets it)")
+    if info is not None:
+        info["x0_mm"] = x0_mm
     x0 = x0_mm * 1e-3
     return tuple(dataclasses.replace(r, position=r.position - x0) for r in readings)
 
 
 def import_readings(path: str | os.PathLike, layout: str = "auto", x0_mm: float | None = None,
-                    notes: list | None = None) -> tuple[Reading, ...]:
-    """Readings of a measurement file in any supported layout (module docstring)."""
+                    notes: list | None = None, info: dict | None = None) -> tuple[Reading, ...]:
+    """Readings of a measurement file in any supported layout (module docstring). ``info``
+    (a dict) receives ``layout`` and ``x0_mm``, the machine coordinate of x = 0 used."""
     name = os.fspath(path)
     text = read_text(path)
     if layout not in LAYOUTS:
@@ -214,15 +217,22 @@ def import_readings(path: str | os.PathLike, layout: str = "auto", x0_mm: float 
     if layout == "auto":
         layout = detect_layout(text, name)
     if layout == "wide":
-        return parse_wide(text, name, x0_mm, notes)
-    return parse_readings(text, name, x0_mm=x0_mm or 0.0, notes=notes)
+        readings = parse_wide(text, name, x0_mm, notes, info)
+    else:
+        readings = parse_readings(text, name, x0_mm=x0_mm or 0.0, notes=notes)
+        if info is not None:
+            info["x0_mm"] = x0_mm or 0.0
+    if info is not None:
+        info["layout"] = layout
+    return readings
 
 
 def read_any(path: str | os.PathLike, layout: str = "auto", x0_mm: float | None = None,
-             notes: list | None = None):
+             notes: list | None = None, info: dict | None = None):
     """Read and merge a measurement file in any supported layout
     (:class:`~diffguide.inverse.data.Measurements`, SI units)."""
-    return merge_readings(import_readings(path, layout, x0_mm, notes), source=os.fspath(path))
+    return merge_readings(import_readings(path, layout, x0_mm, notes, info),
+                          source=os.fspath(path))
 
 
 #: Units of the canonical file written by :func:`format_long`.
