@@ -172,10 +172,16 @@ def prepare_runtime(args) -> None:
       or the user named a folder explicitly.
     - float64 (micrometres on metre-scale geometry need it).
     """
+    from .._core.stack import check_stack
+
+    check_stack()
     if "equinox" not in sys.modules:
         os.environ.setdefault("EQX_ON_ERROR", "nan")
     jax_was_loaded = "jax" in sys.modules
     folder = cache_dir(args)
+    if folder is not None and not jax_was_loaded:
+        # XLA logs a warning line for every executable read from the cache
+        os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
     import jax
 
     if folder is not None and (not jax_was_loaded or getattr(args, "cache_dir", None)):
