@@ -26,14 +26,18 @@ def out_dir(tmp_path_factory):
 
 
 def test_compensation_table_from_the_fit(out_dir):
-    # the fitted model's errors at P1 over the 700 mm stroke, one row per position
-    rows = [ln.split() for ln in (out_dir.parent / "comp.txt").read_text().splitlines()
-            if not ln.startswith("#")]
-    assert rows[0][:2] == ["X_mm", "EXX_um"] and len(rows) == 72
-    values = np.array(rows[1:], dtype=float)
-    assert values[0, 0] == pytest.approx(-350.0) and values[-1, 0] == pytest.approx(350.0)
-    ref = int(np.argmin(np.abs(values[:, 0])))
-    assert np.all(np.abs(values[ref, 1:]) < 1e-9)  # errors are relative to x = 0
+    # the fitted model's errors at P1 over the 700 mm stroke, one row per position, with σ
+    rows = list(csv.DictReader(ln for ln in (out_dir.parent / "comp.txt").open()
+                               if not ln.startswith("#")))
+    assert list(rows[0])[:4] == ["X_machine_mm", "x_mm", "EXX_um", "EXX_sigma_um"]
+    assert len(rows) == 71
+    x = np.array([float(r["x_mm"]) for r in rows])
+    assert x[0] == pytest.approx(-350.0) and x[-1] == pytest.approx(350.0)
+    ref = int(np.argmin(np.abs(x)))
+    for q in ("EXX_um", "EYX_um", "EZX_um", "EAX_urad", "EBX_urad", "ECX_urad"):
+        assert abs(float(rows[ref][q])) < 1e-9  # errors are relative to x = 0
+    sig = np.array([float(r["EBX_sigma_urad"]) for r in rows])
+    assert np.all(sig[np.abs(x) > 100] > 0) and sig[ref] < 1e-6  # zero σ at the reference
 
 
 def test_bundled_data_is_small_and_documented():

@@ -83,8 +83,19 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="machine configuration file (TOML; see 'diffguide config'); overrides "
                    "--preset")
     p.add_argument("--export-compensation", metavar="FILE",
-                   help="write a CNC compensation table (X_mm; errors in µm, µrad) predicted by "
-                   "the fitted model for the point --at, over the stroke")
+                   help="write a compensation table predicted by the fitted model for the point "
+                   "--at over the stroke, in machine coordinates (X = x + --x0-mm), with σ (a "
+                   "column, or FILE's companion .sigma.csv); see --format")
+    p.add_argument("--format", dest="comp_format", default="csv",
+                   choices=("csv", "isg", "siemens-cec", "heidenhain", "fanuc"),
+                   help="format of --export-compensation: csv (errors and σ, µm/µrad), isg "
+                   "(TwinCAT/ISG CSV: X EXX ... ECX, mm and rad, errors), siemens-cec (840D "
+                   "$AN_CEC tables for EYX/EZX, mm, -error), heidenhain (.COM table, ISO 230-1 "
+                   "columns, mm and degrees, -error), fanuc (incremental pitch/straightness list "
+                   "in detection units, -error); README 'Compensation exports'")
+    p.add_argument("--comp-points", type=int, default=71,
+                   help="equidistant positions of the compensation table over the stroke "
+                   "(default 71)")
     p.add_argument("--at", default="P5",
                    help="point of the compensation table: a measured point or a machine "
                    "control point (P1..P5 for majda2012)")
@@ -320,7 +331,8 @@ def run(args) -> int:
     _check_out(Path(args.out))
     cfg = machine_config(args)
     notes: list[str] = []
-    meas = read_any(args.measurements, args.layout, args.x0_mm, notes)
+    info: dict = {}
+    meas = read_any(args.measurements, args.layout, args.x0_mm, notes, info)
     for n in notes:
         _say(args, f"note: {n}")
     _check_inputs(meas, args, cfg)
@@ -412,7 +424,7 @@ def run(args) -> int:
     files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
     _write_dir(Path(args.out), files)
     if args.export_compensation:
-        _export_compensation(args, cfg, points, elastic, family)
+        _export_compensation(args, cfg, points, elastic, family, info.get("x0_mm", 0.0))
     if args.truth:
         e = report["truth"]["rms_error_um"]
         _say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
@@ -463,18 +475,44 @@ def _figures(meas, fits, profiles, s_m, truth):
     return {"profiles.png": fig1, "curves.png": fig2}
 
 
-def _export_compensation(args, cfg, measured_points, fit, family) -> None:
-    """The fitted model's errors at ``--at`` over the stroke, as a compensation table, with a
-    warning for each point where a rigid-body compensation from ``--at`` would not hold."""
+def _error_sigma(machine, fit, x_m, j):
+    """σ of the joint errors at point ``j`` (m, rad), ``(n_pos, 6)``: the rails' posterior
+    covariance pushed through the model's Jacobian (one forward-mode pass over the spline
+    coefficients; the structure's own uncertainty enters only through the rails' covariance)."""
+    import jax
+    import jax.numpy as jnp
+
+    from ..guideway.rails import SplineRail
+    from ..machine.kinematics import joint_errors
+
+    n = fit.basis.n_coeffs
+    start, spacing = fit.basis.start, fit.basis.spacing
+
+    def errors(c):
+        c = c.reshape(2, 2, n)
+        rails = tuple(SplineRail(start, spacing, c[r, 0], c[r, 1]) for r in range(2))
+        return joint_errors(machine, rails, x_m).errors[:, j, :]
+
+    J = np.asarray(jax.jacfwd(errors)(jnp.asarray(np.asarray(fit.coeffs).reshape(-1))))
+    return np.sqrt(np.maximum(np.einsum("pek,kl,pel->pe", J, np.asarray(fit.cov), J), 0.0))
+
+
+def _export_compensation(args, cfg, measured_points, fit, family, x0_mm=0.0) -> None:
+    """The fitted model's errors at ``--at`` over the stroke, as a compensation table in
+    ``--format`` (machine coordinates ``X = x + x0``; σ from the posterior), with a warning
+    for each point where a rigid-body compensation from ``--at`` would not hold."""
     from ..io.files import atomic_write_text
     from ..machine.build import build_machine
     from ..machine.kinematics import joint_errors
-    from ..studies.compensation import compensation_table, location_warnings
+    from ..studies.compensation import location_warnings
+    from ..studies.exports import export_compensation
 
     points = {k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()}
     points.update(measured_points)
     if args.at not in points:
         raise ValueError(f"--at must be one of the points {', '.join(points)}, got {args.at!r}")
+    if not 2 <= args.comp_points <= 10000:
+        raise ValueError(f"--comp-points must be in [2, 10000], got {args.comp_points}")
     kw = {}  # the fitted structure
     if "thickness" in fit.structure:
         kw["thickness"] = fit.structure["thickness"]["value"]
@@ -482,16 +520,22 @@ def _export_compensation(args, cfg, measured_points, fit, family) -> None:
         kw["preload_fraction"] = fit.structure["preload"]["value"]
     machine = build_machine(cfg, nx=args.nx, ny=args.ny, points=points, **kw)
     half = cfg["machine"]["stroke_mm"] / 2
-    x_mm = np.linspace(-half, half, 71)
+    x_mm = np.linspace(-half, half, args.comp_points)
     je = joint_errors(machine, fit.rails(), x_mm * 1e-3)
     if not bool(np.all(np.asarray(je.converged))):
         raise ValueError("the equilibrium of the fitted model did not converge over the stroke; "
                          "no compensation table written")
+    j = list(je.point_names).index(args.at)
     errs = je.user_units()
-    text = compensation_table(x_mm, errs, je.point_names, args.at,
-                              f"predicted by the elastic model fitted to {args.measurements}")
-    atomic_write_text(args.export_compensation, text)
-    _say(args, f"wrote {args.export_compensation} (point {args.at})")
+    sigma = _error_sigma(machine, fit, x_mm * 1e-3, j)
+    files = export_compensation(
+        args.comp_format, x_mm, np.asarray(je.errors)[:, j, :], sigma, x0_mm=x0_mm,
+        point=args.at, source=f"predicted by the elastic model fitted to {args.measurements}")
+    base = Path(args.export_compensation)
+    for suffix, text in files.items():
+        path = base if not suffix else base.with_name(base.stem + suffix)
+        atomic_write_text(path, text)
+        _say(args, f"wrote {path} (point {args.at}, {args.comp_format})")
     for w in location_warnings(errs, je.point_names, np.asarray(je.points_xy), args.at,
                                args.tol_um, args.tol_urad):
         print(f"diffguide fit: warning: {w}", file=sys.stderr)

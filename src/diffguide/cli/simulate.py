@@ -48,7 +48,10 @@ def add_parser(sub) -> None:
         "s along the rail from under the table centre at x = 0)",
     )
     p.add_argument(
-        "--positions", default="-350:350:71", help="table positions START:STOP:COUNT (mm)"
+        "--positions",
+        default=None,
+        help="table positions START:STOP:COUNT (mm); default: the machine's whole stroke at 71 "
+        "positions",
     )
     p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
     p.add_argument("--mesh", help="table mesh NXxNY (elements); default from the machine (20x10)")
@@ -57,9 +60,24 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--export-compensation",
         metavar="FILE",
-        help="also write a CNC compensation table (X_mm, errors in µm/µrad) for --at",
+        help="also write a compensation table for --at in --format (machine coordinates X = x + "
+        "--x0-mm; README 'Compensation exports')",
     )
     p.add_argument("--at", default="P5", help="the control point of the compensation table")
+    p.add_argument(
+        "--format",
+        dest="comp_format",
+        default="csv",
+        choices=("csv", "isg", "siemens-cec", "heidenhain", "fanuc"),
+        help="format of --export-compensation (README 'Compensation exports')",
+    )
+    p.add_argument(
+        "--x0-mm",
+        type=float,
+        default=0.0,
+        help="machine coordinate (mm) of the table position x = 0 (mid-stroke): the "
+        "compensation table is written at X = x + x0",
+    )
     p.add_argument(
         "--tol-um",
         type=float,
@@ -89,6 +107,12 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
+def default_positions(cfg: dict, count: int = 71) -> np.ndarray:
+    """``count`` positions (m) over the whole stroke of the machine configuration ``cfg``."""
+    half = cfg["machine"]["stroke_mm"] / 2e3
+    return np.linspace(-half, half, count)
+
+
 def parse_mesh(text: str) -> tuple[int, int]:
     try:
         nx, ny = (int(v) for v in text.lower().split("x"))
@@ -108,7 +132,9 @@ def run(args) -> int:
     from ..machine.majda2012 import paper_variant
 
     cfg = machine_config(args)
-    positions = parse_positions(args.positions)
+    positions = (
+        default_positions(cfg) if args.positions is None else parse_positions(args.positions)
+    )
     half_stroke = cfg["machine"]["stroke_mm"] / 2
     if np.max(np.abs(positions)) * 1e3 > half_stroke + 1e-9:
         raise ValueError(
@@ -140,9 +166,9 @@ def run(args) -> int:
     lines = [header]
     xy = np.asarray(je.points_xy) * 1e3
     for i, x in enumerate(positions):
-        for j, name in enumerate(je.point_names):
+        for j, pname in enumerate(je.point_names):
             vals = ",".join(f"{v + 0.0:.6f}" for v in errs[i, j])
-            lines.append(f"{x * 1e3:.6g},{name},{xy[j, 0]:.6g},{xy[j, 1]:.6g},{vals}")
+            lines.append(f"{x * 1e3:.6g},{pname},{xy[j, 0]:.6g},{xy[j, 1]:.6g},{vals}")
     if args.export_compensation and args.at not in je.point_names:
         raise ValueError(
             f"--at must be one of the points {', '.join(je.point_names)}, got {args.at!r}"
@@ -165,14 +191,27 @@ def run(args) -> int:
         atomic_savefig(fig, args.field_plot, dpi=100)
         say(f"wrote {args.field_plot}")
     if args.export_compensation:
-        from ..studies.compensation import compensation_table, location_warnings
+        from pathlib import Path
+
+        from ..studies.compensation import location_warnings
+        from ..studies.exports import export_compensation
 
         what = f"rails {args.rails}" if args.rails else f"variant {args.variant}"
-        text = compensation_table(
-            positions * 1e3, errs, je.point_names, args.at, f"simulated, {name}, {what}"
+        j = list(je.point_names).index(args.at)
+        files = export_compensation(
+            args.comp_format,
+            positions * 1e3,
+            np.asarray(je.errors)[:, j, :],
+            None,
+            x0_mm=args.x0_mm,
+            point=args.at,
+            source=f"simulated, {name}, {what}",
         )
-        atomic_write_text(args.export_compensation, text)
-        say(f"wrote {args.export_compensation}")
+        base = Path(args.export_compensation)
+        for suffix, text in files.items():
+            path = base if not suffix else base.with_name(base.stem + suffix)
+            atomic_write_text(path, text)
+            say(f"wrote {path}")
         warnings = location_warnings(
             errs, je.point_names, np.asarray(je.points_xy), args.at, args.tol_um, args.tol_urad
         )
