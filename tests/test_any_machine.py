@@ -48,10 +48,26 @@ def big(tmp_path_factory):
 @pytest.fixture(scope="module")
 def simulated(big):
     out = big / "errors.csv"
-    rc = main(["simulate", "--config", str(big / "big.toml"), "--variant", "3",
-               "--positions", "-600:600:9", "--out", str(out), "--quiet",
-               "--export-compensation", str(big / "comp.lst"), "--format", "fanuc",
-               "--x0-mm", str(X0_MM)])
+    rc = main(
+        [
+            "simulate",
+            "--config",
+            str(big / "big.toml"),
+            "--variant",
+            "3",
+            "--positions",
+            "-600:600:9",
+            "--out",
+            str(out),
+            "--quiet",
+            "--export-compensation",
+            str(big / "comp.lst"),
+            "--format",
+            "fanuc",
+            "--x0-mm",
+            str(X0_MM),
+        ]
+    )
     assert rc == 0
     return list(csv.DictReader(out.open()))
 
@@ -63,8 +79,21 @@ def test_simulate_uses_the_configured_stroke_and_points(simulated, big):
     assert (float(p1["x_mm"]), float(p1["y_mm"])) == (700.0, 350.0)
     assert "REFERENCE POINT X = 800.0000 MM" in (big / "comp.lst").read_text()
     # outside this machine's stroke is still refused
-    assert main(["simulate", "--config", str(big / "big.toml"), "--positions", "-700:700:3",
-                 "--out", str(big / "x.csv"), "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "simulate",
+                "--config",
+                str(big / "big.toml"),
+                "--positions",
+                "-700:700:3",
+                "--out",
+                str(big / "x.csv"),
+                "--quiet",
+            ]
+        )
+        == 2
+    )
 
 
 def _measurements(simulated, path):
@@ -77,10 +106,17 @@ def _measurements(simulated, path):
         qs = ("EBX", "ECX") if inst == "interferometer" else ("EBX", "EAX")
         for q in qs:
             v = float(r[f"{q}_urad"])
-            for run, d, dv in (("1", "+", 0.2), ("1", "-", -0.2), ("2", "+", 0.1),
-                               ("2", "-", -0.3)):
-                lines.append(f"{float(r['position_mm']) + X0_MM},{r['point']},{r['x_mm']},{r['y_mm']},{q},"
-                             f"{v + dv:.4f},um/m,1.0,{run},{d},{inst}")
+            for run, d, dv in (
+                ("1", "+", 0.2),
+                ("1", "-", -0.2),
+                ("2", "+", 0.1),
+                ("2", "-", -0.3),
+            ):
+                x = float(r["position_mm"]) + X0_MM
+                lines.append(
+                    f"{x},{r['point']},{r['x_mm']},{r['y_mm']},{q},"
+                    f"{v + dv:.4f},um/m,1.0,{run},{d},{inst}"
+                )
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
@@ -89,10 +125,32 @@ def test_fit_on_the_big_machine(simulated, big):
     _measurements(simulated, data)
     out = big / "fit"
     comp = big / "comp.csv"
-    rc = main(["fit", "--config", str(big / "big.toml"), "--measurements", str(data),
-               "--out", str(out), "--no-rigid", "--no-plots", "--structure", "fixed",
-               "--export-compensation", str(comp), "--format", "isg", "--comp-points", "5",
-               "--at", "P5", "--x0-mm", str(X0_MM), "--quiet"])
+    rc = main(
+        [
+            "fit",
+            "--config",
+            str(big / "big.toml"),
+            "--measurements",
+            str(data),
+            "--out",
+            str(out),
+            "--no-rigid",
+            "--no-plots",
+            "--structure",
+            "fixed",
+            "--export-compensation",
+            str(comp),
+            "--format",
+            "isg",
+            "--comp-points",
+            "5",
+            "--at",
+            "P5",
+            "--x0-mm",
+            str(X0_MM),
+            "--quiet",
+        ]
+    )
     assert rc in (0, 3)  # written either way; convergence is not what this test is about
     report = json.loads((out / "report.json").read_text())
     assert report["config"] == str(big / "big.toml")
@@ -105,16 +163,34 @@ def test_fit_on_the_big_machine(simulated, big):
     assert rows[0] == ["X", "EXX", "EYX", "EZX", "EAX", "EBX", "ECX"]
     xs = np.array([float(r[0]) for r in rows[1:]])
     np.testing.assert_allclose(xs, X0_MM + np.linspace(-600, 600, 5))
-    sig = list(csv.DictReader(ln for ln in (big / "comp.sigma.csv").open()
-                              if not ln.startswith("#")))
+    sig = list(
+        csv.DictReader(ln for ln in (big / "comp.sigma.csv").open() if not ln.startswith("#"))
+    )
     assert len(sig) == 5 and all(float(r["EBX_sigma_urad"]) >= 0 for r in sig)
 
 
 def test_montecarlo_with_config(big):
     out = big / "mc.csv"
-    rc = main(["montecarlo", "--config", str(big / "big.toml"), "--samples", "2",
-               "--positions", "-600:600:5", "--mesh", "4x2", "--chunk", "2",
-               "--cpu-devices", "1", "--out", str(out), "--quiet"])
+    rc = main(
+        [
+            "montecarlo",
+            "--config",
+            str(big / "big.toml"),
+            "--samples",
+            "2",
+            "--positions",
+            "-600:600:5",
+            "--mesh",
+            "4x2",
+            "--chunk",
+            "2",
+            "--cpu-devices",
+            "1",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
     assert rc == 0
     rows = list(csv.DictReader(out.open()))
     assert len(rows) == 2

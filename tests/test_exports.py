@@ -16,8 +16,17 @@ X = np.linspace(-300.0, 300.0, 13)  # mm, equidistant, includes 0
 X0 = 500.0
 # made-up errors with distinct magnitudes per quantity (m, rad), zero at x = 0
 _S = X / 300.0
-ERR = np.stack([3e-6 * _S, -2e-6 * _S**2, 1.5e-6 * np.sin(3 * _S),
-                4e-6 * _S, -7e-6 * _S**3, 2.5e-6 * np.sin(2 * _S)], axis=1)
+ERR = np.stack(
+    [
+        3e-6 * _S,
+        -2e-6 * _S**2,
+        1.5e-6 * np.sin(3 * _S),
+        4e-6 * _S,
+        -7e-6 * _S**3,
+        2.5e-6 * np.sin(2 * _S),
+    ],
+    axis=1,
+)
 SIG = np.abs(ERR) * 0.1 + 0.2e-6
 
 
@@ -28,10 +37,28 @@ def _files(fmt):
 def parse_csv(text):
     rows = list(csv.DictReader(line for line in io.StringIO(text) if not line.startswith("#")))
     X_m = np.array([float(r["X_machine_mm"]) for r in rows])
-    e = np.array([[float(r[f"{n}_{u}"]) for n, u in zip(
-        ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX"), ("um",) * 3 + ("urad",) * 3)] for r in rows])
-    s = np.array([[float(r[f"{n}_sigma_{u}"]) for n, u in zip(
-        ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX"), ("um",) * 3 + ("urad",) * 3)] for r in rows])
+    e = np.array(
+        [
+            [
+                float(r[f"{n}_{u}"])
+                for n, u in zip(
+                    ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX"), ("um",) * 3 + ("urad",) * 3
+                )
+            ]
+            for r in rows
+        ]
+    )
+    s = np.array(
+        [
+            [
+                float(r[f"{n}_sigma_{u}"])
+                for n, u in zip(
+                    ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX"), ("um",) * 3 + ("urad",) * 3
+                )
+            ]
+            for r in rows
+        ]
+    )
     return X_m, e * 1e-6, s * 1e-6
 
 
@@ -83,8 +110,17 @@ def parse_heidenhain(text):
     cols = lines[1].split()
     rows = np.array([[float(v) for v in ln.split()] for ln in lines[2:-1]])
     d = dict(zip(cols, rows.T))
-    comp = np.stack([d["EXX"] * 1e-3, d["EYX"] * 1e-3, d["EZX"] * 1e-3, np.radians(d["EAX"]),
-                     np.radians(d["EBX"]), np.radians(d["ECX"])], axis=1)
+    comp = np.stack(
+        [
+            d["EXX"] * 1e-3,
+            d["EYX"] * 1e-3,
+            d["EZX"] * 1e-3,
+            np.radians(d["EAX"]),
+            np.radians(d["EBX"]),
+            np.radians(d["ECX"]),
+        ],
+        axis=1,
+    )
     return d["X"], comp
 
 
@@ -126,16 +162,21 @@ def test_isg_errors_in_mm_and_rad():
 def _sigma_as_csv(text):
     """The companion has only σ columns: give parse_csv zero error columns."""
     rows = list(csv.DictReader(ln for ln in io.StringIO(text) if not ln.startswith("#")))
-    names = [f"{n}_{u}" for n, u in zip(("EXX", "EYX", "EZX", "EAX", "EBX", "ECX"),
-                                        ("um",) * 3 + ("urad",) * 3)]
+    names = [
+        f"{n}_{u}"
+        for n, u in zip(("EXX", "EYX", "EZX", "EAX", "EBX", "ECX"), ("um",) * 3 + ("urad",) * 3)
+    ]
     out = io.StringIO()
-    w = csv.DictWriter(out, ["X_machine_mm"] + names + [n.replace("_u", "_sigma_u")
-                                                        for n in names])
+    w = csv.DictWriter(out, ["X_machine_mm"] + names + [n.replace("_u", "_sigma_u") for n in names])
     w.writeheader()
     for r in rows:
-        w.writerow({"X_machine_mm": r["X_machine_mm"], **{n: 0 for n in names},
-                    **{n.replace("_u", "_sigma_u"): r[n.replace("_u", "_sigma_u")]
-                       for n in names}})
+        w.writerow(
+            {
+                "X_machine_mm": r["X_machine_mm"],
+                **{n: 0 for n in names},
+                **{n.replace("_u", "_sigma_u"): r[n.replace("_u", "_sigma_u")] for n in names},
+            }
+        )
     return out.getvalue()
 
 

@@ -24,10 +24,13 @@ def canonical():
     return merged_table(read_measurements(CANONICAL))
 
 
-@pytest.mark.parametrize("name, x0_mm, layout", [
-    ("majda2012_measurements_wide.csv", None, "wide"),  # x0: middle of the targets (400 mm)
-    ("majda2012_measurements_semicolon.csv", 400.0, "long"),
-])
+@pytest.mark.parametrize(
+    "name, x0_mm, layout",
+    [
+        ("majda2012_measurements_wide.csv", None, "wide"),  # x0: middle of the targets (400 mm)
+        ("majda2012_measurements_semicolon.csv", 400.0, "long"),
+    ],
+)
 def test_example_layouts_give_the_canonical_merged_data(canonical, name, x0_mm, layout):
     text = (DATA / name).read_text(encoding="utf-8")
     assert detect_layout(text, name) == layout
@@ -109,18 +112,33 @@ def test_wide_differential_pair_and_default_x0(tmp_path):
     np.testing.assert_allclose(np.sort(m2.position), [0.1, 0.3])
 
 
-@pytest.mark.parametrize("text, line, expected", [
-    ("hello,world\n1,2\n", 1, "unknown layout: expected a long header"),
-    ("# c\npoint;P1\nquantity;EBX\nunit;um/m\ntarget_mm;run1\n0;1\n", 5,
-     "without metadata line(s) x_mm, y_mm"),
-    ("point;P1\nx_mm;0\ny_mm;0\nquantity;EBX\nunit;um/m\ntarget_mm;speed\n", 6,
-     "without run columns"),
-    ("point;P1\nx_mm;0\ny_mm;0\nquantity;EBX\nunit;um/m\ntarget_mm;run1_fwd\n0;abc\n", 7,
-     "column 'run1_fwd': not a number"),
-    ("point;P1\nx_mm;0\ny_mm;0\nquantity;EBX\nunit;um/m\ntarget_mm;run1_fwd_ref\n0;1\n", 6,
-     "without its measuring column"),
-    ("position_mm;point;x_mm;y_mm;quantity;value;unit;sigam\n", 1, "did you mean 'sigma'"),
-])
+@pytest.mark.parametrize(
+    "text, line, expected",
+    [
+        ("hello,world\n1,2\n", 1, "unknown layout: expected a long header"),
+        (
+            "# c\npoint;P1\nquantity;EBX\nunit;um/m\ntarget_mm;run1\n0;1\n",
+            5,
+            "without metadata line(s) x_mm, y_mm",
+        ),
+        (
+            "point;P1\nx_mm;0\ny_mm;0\nquantity;EBX\nunit;um/m\ntarget_mm;speed\n",
+            6,
+            "without run columns",
+        ),
+        (
+            "point;P1\nx_mm;0\ny_mm;0\nquantity;EBX\nunit;um/m\ntarget_mm;run1_fwd\n0;abc\n",
+            7,
+            "column 'run1_fwd': not a number",
+        ),
+        (
+            "point;P1\nx_mm;0\ny_mm;0\nquantity;EBX\nunit;um/m\ntarget_mm;run1_fwd_ref\n0;1\n",
+            6,
+            "without its measuring column",
+        ),
+        ("position_mm;point;x_mm;y_mm;quantity;value;unit;sigam\n", 1, "did you mean 'sigma'"),
+    ],
+)
 def test_unknown_layouts_fail_with_one_line(tmp_path, text, line, expected):
     p = _write(tmp_path, text)
     with pytest.raises(ValueError) as err:
@@ -136,7 +154,8 @@ def test_import_command_writes_the_canonical_file(tmp_path, canonical, capsys):
     add_parser(sub)  # registered as 'import' (cli/__init__.py lists the commands)
     out = tmp_path / "canon.csv"
     args = sub.choices["import"].parse_args(
-        [str(DATA / "majda2012_measurements_wide.csv"), "--out", str(out)])
+        [str(DATA / "majda2012_measurements_wide.csv"), "--out", str(out)]
+    )
     assert args.func(args) == 0
     assert "temperature_C ignored" in capsys.readouterr().err
     got = merged_table(read_measurements(out))
@@ -146,6 +165,5 @@ def test_import_command_writes_the_canonical_file(tmp_path, canonical, capsys):
 
 def test_fit_refuses_an_unknown_layout(tmp_path):
     bad = _write(tmp_path, "hello;world\n")
-    assert main(["fit", "--measurements", str(bad), "--out", str(tmp_path / "o"),
-                 "--quiet"]) == 2
+    assert main(["fit", "--measurements", str(bad), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     assert not (tmp_path / "o").exists()

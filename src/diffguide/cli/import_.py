@@ -20,12 +20,21 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "note. See README 'File formats'.",
     )
     p.add_argument("input", metavar="FILE", help="measurement file")
-    p.add_argument("--format", dest="layout", choices=("auto", "long", "wide"), default="auto",
-                   help="layout of FILE (default: detected from its first line)")
-    p.add_argument("--x0-mm", type=float, default=None,
-                   help="machine coordinate (mm) of the table position x = 0 (the model's "
-                   "reference, the middle of the stroke); default: 0 for the long layout (its "
-                   "position_mm is x already), the middle of the measured targets for the wide one")
+    p.add_argument(
+        "--format",
+        dest="layout",
+        choices=("auto", "long", "wide"),
+        default="auto",
+        help="layout of FILE (default: detected from its first line)",
+    )
+    p.add_argument(
+        "--x0-mm",
+        type=float,
+        default=None,
+        help="machine coordinate (mm) of the table position x = 0 (the model's "
+        "reference, the middle of the stroke); default: 0 for the long layout (its "
+        "position_mm is x already), the middle of the measured targets for the wide one",
+    )
     p.add_argument("--out", required=True, metavar="FILE.csv", help="canonical long CSV to write")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
@@ -45,6 +54,8 @@ def run(args) -> int:
     if not args.quiet:
         for n in notes:
             print(f"diffguide import: note: {n}", file=sys.stderr)
-        print(f"wrote {args.out}: {len(readings)} readings ({meas.n} merged rows in "
-              f"{len(meas.channels)} channels)")
+        print(
+            f"wrote {args.out}: {len(readings)} readings ({meas.n} merged rows in "
+            f"{len(meas.channels)} channels)"
+        )
     return 0

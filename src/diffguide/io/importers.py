@@ -110,23 +110,30 @@ def _wide_columns(header, name, number, notes):
             ignored.append(f)
             continue
         d = (m["dir"] or "fwd").lower()
-        direction = "backward" if d in ("bwd", "backward", "neg", "negative", "down", "-") else (
-            "forward")
+        direction = (
+            "backward" if d in ("bwd", "backward", "neg", "negative", "down", "-") else ("forward")
+        )
         cols[k] = (m["run"], direction, bool(m["ref"]))
     if not cols:
-        raise ValueError(f"{name}:{number}: wide table header without run columns (expected "
-                         f"{header[0]};run1_fwd;run1_bwd;... or run1_fwd_ref for a reference "
-                         "level)")
+        raise ValueError(
+            f"{name}:{number}: wide table header without run columns (expected "
+            f"{header[0]};run1_fwd;run1_bwd;... or run1_fwd_ref for a reference "
+            "level)"
+        )
     seen = {}
     for k, key in cols.items():
         if key in seen:
-            raise ValueError(f"{name}:{number}: columns {header[seen[key]]!r} and {header[k]!r} "
-                             "are the same run and direction")
+            raise ValueError(
+                f"{name}:{number}: columns {header[seen[key]]!r} and {header[k]!r} "
+                "are the same run and direction"
+            )
         seen[key] = k
-    for (run, d, ref) in list(seen):
+    for run, d, ref in list(seen):
         if ref and (run, d, False) not in seen:
-            raise ValueError(f"{name}:{number}: reference column {header[seen[(run, d, ref)]]!r} "
-                             f"without its measuring column run{run}_{d[:3]}")
+            raise ValueError(
+                f"{name}:{number}: reference column {header[seen[(run, d, ref)]]!r} "
+                f"without its measuring column run{run}_{d[:3]}"
+            )
     if ignored and notes is not None:
         text = f"column(s) {', '.join(ignored)} ignored (not run columns)"
         if not any(n.endswith(text) for n in notes):  # once per file, not per block
@@ -134,8 +141,13 @@ def _wide_columns(header, name, number, notes):
     return cols, seen
 
 
-def parse_wide(text: str, name: str = "<text>", x0_mm: float | None = None,
-               notes: list | None = None, info: dict | None = None) -> tuple[Reading, ...]:
+def parse_wide(
+    text: str,
+    name: str = "<text>",
+    x0_mm: float | None = None,
+    notes: list | None = None,
+    info: dict | None = None,
+) -> tuple[Reading, ...]:
     """Validated readings of a wide file (module docstring); ``x0_mm`` ``None``: the middle of
     the measured targets."""
     readings, meta, meta_line = [], {}, {}
@@ -151,46 +163,67 @@ def parse_wide(text: str, name: str = "<text>", x0_mm: float | None = None,
                 table, meta, meta_line = None, {}, {}
             values = [f for f in fields[1:] if f]
             if len(values) != 1:
-                raise ValueError(f"{name}:{number}: metadata line {key!r} needs one value "
-                                 f"('{key}{delimiter}VALUE')")
+                raise ValueError(
+                    f"{name}:{number}: metadata line {key!r} needs one value "
+                    f"('{key}{delimiter}VALUE')"
+                )
             meta[key], meta_line[key] = values[0], number
             continue
         if key in WIDE_TARGET:
             missing = [k for k in WIDE_REQUIRED if k not in meta]
             if missing:
-                raise ValueError(f"{name}:{number}: wide block without metadata line(s) "
-                                 f"{', '.join(missing)} before its '{fields[0]}' header "
-                                 f"(required {', '.join(WIDE_REQUIRED)}; optional "
-                                 f"{', '.join(WIDE_OPTIONAL)})")
+                raise ValueError(
+                    f"{name}:{number}: wide block without metadata line(s) "
+                    f"{', '.join(missing)} before its '{fields[0]}' header "
+                    f"(required {', '.join(WIDE_REQUIRED)}; optional "
+                    f"{', '.join(WIDE_OPTIONAL)})"
+                )
             cols, lookup = _wide_columns(fields, name, number, notes)
             table = (cols, lookup, fields, number)
             continue
         if table is None:
-            raise ValueError(f"{name}:{number}: unknown line {line.strip()[:40]!r} in a wide "
-                             f"file: {_EXPECTED}")
+            raise ValueError(
+                f"{name}:{number}: unknown line {line.strip()[:40]!r} in a wide file: {_EXPECTED}"
+            )
         cols, lookup, header, hline = table
         if len(fields) != len(header):
-            raise ValueError(f"{name}:{number}: {len(fields)} fields, the table header (line "
-                             f"{hline}) has {len(header)}")
+            raise ValueError(
+                f"{name}:{number}: {len(fields)} fields, the table header (line "
+                f"{hline}) has {len(header)}"
+            )
         for k, (run, direction, ref) in cols.items():
             if ref or not fields[k]:
                 continue
-            row = {"position_mm": fields[0], "point": meta["point"], "x_mm": meta["x_mm"],
-                   "y_mm": meta["y_mm"], "quantity": meta["quantity"], "unit": meta["unit"],
-                   "value": fields[k], "sigma": meta.get("sigma", ""), "run": run,
-                   "direction": direction, "instrument": meta.get("instrument", ""),
-                   "z_mm": meta.get("z_mm", "")}
+            row = {
+                "position_mm": fields[0],
+                "point": meta["point"],
+                "x_mm": meta["x_mm"],
+                "y_mm": meta["y_mm"],
+                "quantity": meta["quantity"],
+                "unit": meta["unit"],
+                "value": fields[k],
+                "sigma": meta.get("sigma", ""),
+                "run": run,
+                "direction": direction,
+                "instrument": meta.get("instrument", ""),
+                "z_mm": meta.get("z_mm", ""),
+            }
             kref = lookup.get((run, direction, True))
             if kref is not None:
                 if not fields[kref]:
-                    raise ValueError(f"{name}:{number}: column {header[kref]!r}: the reference "
-                                     f"reading is missing (column {header[k]!r} has one)")
+                    raise ValueError(
+                        f"{name}:{number}: column {header[kref]!r}: the reference "
+                        f"reading is missing (column {header[k]!r} has one)"
+                    )
                 row["reference"] = fields[kref]
             try:
                 readings.append(_parse_row(row, number))
             except _RowError as exc:
-                what = str(exc).replace("field 'value'", f"column {header[k]!r}").replace(
-                    "field 'position_mm'", f"column {header[0]!r}")
+                what = (
+                    str(exc)
+                    .replace("field 'value'", f"column {header[k]!r}")
+                    .replace("field 'position_mm'", f"column {header[0]!r}")
+                )
                 raise ValueError(f"{name}:{number}: {what}") from None
     if not readings:
         raise ValueError(f"{name}:1: no readings in the wide file: {_EXPECTED}")
@@ -198,16 +231,23 @@ def parse_wide(text: str, name: str = "<text>", x0_mm: float | None = None,
         pos = [r.position for r in readings]
         x0_mm = (min(pos) + max(pos)) / 2 * 1e3
         if notes is not None:
-            notes.append(f"{name}: targets shifted by x0 = {x0_mm:g} mm (the middle of the "
-                         "measured range; --x0-mm sets it)")
+            notes.append(
+                f"{name}: targets shifted by x0 = {x0_mm:g} mm (the middle of the "
+                "measured range; --x0-mm sets it)"
+            )
     if info is not None:
         info["x0_mm"] = x0_mm
     x0 = x0_mm * 1e-3
     return tuple(dataclasses.replace(r, position=r.position - x0) for r in readings)
 
 
-def import_readings(path: str | os.PathLike, layout: str = "auto", x0_mm: float | None = None,
-                    notes: list | None = None, info: dict | None = None) -> tuple[Reading, ...]:
+def import_readings(
+    path: str | os.PathLike,
+    layout: str = "auto",
+    x0_mm: float | None = None,
+    notes: list | None = None,
+    info: dict | None = None,
+) -> tuple[Reading, ...]:
     """Readings of a measurement file in any supported layout (module docstring). ``info``
     (a dict) receives ``layout`` and ``x0_mm``, the machine coordinate of x = 0 used."""
     name = os.fspath(path)
@@ -227,12 +267,16 @@ def import_readings(path: str | os.PathLike, layout: str = "auto", x0_mm: float 
     return readings
 
 
-def read_any(path: str | os.PathLike, layout: str = "auto", x0_mm: float | None = None,
-             notes: list | None = None, info: dict | None = None):
+def read_any(
+    path: str | os.PathLike,
+    layout: str = "auto",
+    x0_mm: float | None = None,
+    notes: list | None = None,
+    info: dict | None = None,
+):
     """Read and merge a measurement file in any supported layout
     (:class:`~diffguide.inverse.data.Measurements`, SI units)."""
-    return merge_readings(import_readings(path, layout, x0_mm, notes, info),
-                          source=os.fspath(path))
+    return merge_readings(import_readings(path, layout, x0_mm, notes, info), source=os.fspath(path))
 
 
 #: Units of the canonical file written by :func:`format_long`.
@@ -253,15 +297,18 @@ def format_long(readings, comment: str = "") -> str:
         assert r.unit in (LINEAR_UNITS if kind == "linear" else ANGULAR_UNITS)
         sigma = "" if r.sigma is None else f"{r.sigma * 1e6:.6f}"
         point = f'"{r.point}"' if ("," in r.point or '"' in r.point) else r.point
-        out.write(f"{r.position * 1e3:.6f},{point},{r.xy[0] * 1e3:.6f},{r.xy[1] * 1e3:.6f},"
-                  f"{r.quantity},{r.value * 1e6:.6f},{CANONICAL_UNIT[kind]},{sigma},{r.run},"
-                  f"{r.direction},{r.instrument},{r.z * 1e3:.6f}\n")
+        out.write(
+            f"{r.position * 1e3:.6f},{point},{r.xy[0] * 1e3:.6f},{r.xy[1] * 1e3:.6f},"
+            f"{r.quantity},{r.value * 1e6:.6f},{CANONICAL_UNIT[kind]},{sigma},{r.run},"
+            f"{r.direction},{r.instrument},{r.z * 1e3:.6f}\n"
+        )
     return out.getvalue()
 
 
 def merged_table(meas) -> np.ndarray:
     """``(n, 5)``: position (mm), point index, quantity index, value and σ (µm, µm/m) of merged
     data, sorted — for comparing two files' merged data."""
-    a = np.column_stack([meas.position * 1e3, meas.point, meas.quantity, meas.value * 1e6,
-                         meas.sigma * 1e6])
+    a = np.column_stack(
+        [meas.position * 1e3, meas.point, meas.quantity, meas.value * 1e6, meas.sigma * 1e6]
+    )
     return a[np.lexsort(a[:, 2::-1].T)]

@@ -57,26 +57,34 @@ _UNIT = ("um", "um", "um", "urad", "urad", "urad")
 
 
 def _header_lines(point, source, x0_mm, sign):
-    return [f"diffguide compensation table, point {point}" + (f"; {source}" if source else ""),
-            f"machine coordinates: X = x + x0, x0 = {x0_mm:g} mm (x = 0: the reference "
-            "position, mid-stroke)",
-            sign]
+    return [
+        f"diffguide compensation table, point {point}" + (f"; {source}" if source else ""),
+        f"machine coordinates: X = x + x0, x0 = {x0_mm:g} mm (x = 0: the reference "
+        "position, mid-stroke)",
+        sign,
+    ]
 
 
 def sigma_csv(x_mm, sigma, x0_mm, point) -> str:
     """The companion file: ``X_machine_mm,x_mm`` and the six σ (µm, µrad), standard
     uncertainties of the *errors* (the same for the compensation values)."""
-    lines = [f"# diffguide: standard uncertainty (1 sigma) of the errors at point {point}",
-             "X_machine_mm,x_mm," + ",".join(f"{n}_sigma_{u}" for n, u in zip(ERROR_NAMES,
-                                                                               _UNIT))]
+    lines = [
+        f"# diffguide: standard uncertainty (1 sigma) of the errors at point {point}",
+        "X_machine_mm,x_mm," + ",".join(f"{n}_sigma_{u}" for n, u in zip(ERROR_NAMES, _UNIT)),
+    ]
     for x, s in zip(x_mm, sigma):
         lines.append(f"{x + x0_mm:.4f},{x:.4f}," + ",".join(f"{v * 1e6:.5f}" for v in s))
     return "\n".join(lines) + "\n"
 
 
 def _csv(x_mm, err, sig, x0_mm, point, source):
-    head = _header_lines(point, source, x0_mm, "values: the errors (ISO 230-1 signs, relative to "
-                         "x = 0); a controller compensates with their negatives")
+    head = _header_lines(
+        point,
+        source,
+        x0_mm,
+        "values: the errors (ISO 230-1 signs, relative to "
+        "x = 0); a controller compensates with their negatives",
+    )
     cols = ["X_machine_mm", "x_mm"]
     for n, u in zip(ERROR_NAMES, _UNIT):
         cols += [f"{n}_{u}", f"{n}_sigma_{u}"]
@@ -84,15 +92,19 @@ def _csv(x_mm, err, sig, x0_mm, point, source):
     for i, x in enumerate(x_mm):
         vals = []
         for k in range(6):
-            vals += [f"{err[i, k] * 1e6:.5f}",
-                     "" if sig is None else f"{sig[i, k] * 1e6:.5f}"]
+            vals += [f"{err[i, k] * 1e6:.5f}", "" if sig is None else f"{sig[i, k] * 1e6:.5f}"]
         lines.append(f"{x + x0_mm:.4f},{x:.4f}," + ",".join(vals))
     return "\n".join(lines) + "\n"
 
 
 def _isg(x_mm, err, x0_mm, point, source):
-    head = _header_lines(point, source, x0_mm, "values: ISO 230-1 component errors of the X "
-                         "axis (not negated: the controller compensates them)")
+    head = _header_lines(
+        point,
+        source,
+        x0_mm,
+        "values: ISO 230-1 component errors of the X "
+        "axis (not negated: the controller compensates them)",
+    )
     head.append("units: X, EXX, EYX, EZX in mm; EAX, EBX, ECX in rad")
     lines = [f"// {h}" for h in head] + ["X EXX EYX EZX EAX EBX ECX"]
     for i, x in enumerate(x_mm):
@@ -112,23 +124,37 @@ def _equidistant_step(x_mm):
 def _siemens(x_mm, err, x0_mm, point, source):
     step = _equidistant_step(x_mm)
     out = ["%_N_NC_CEC_INI", "CHANDATA(1)"]
-    out += [f"; {h}" for h in _header_lines(point, source, x0_mm, "values: compensation = "
-                                           "-error (added to the output axis), mm")]
+    out += [
+        f"; {h}"
+        for h in _header_lines(
+            point, source, x0_mm, "values: compensation = -error (added to the output axis), mm"
+        )
+    ]
     for t, (k, axis) in enumerate(((1, "AX2"), (2, "AX3"))):
         out.append(f"; table {t}: -{ERROR_NAMES[k]} on {axis} as a function of AX1 (X)")
         for i in range(len(x_mm)):
             out.append(f"$AN_CEC[{t},{i}]={-err[i, k] * 1e3:.6f}")
-        out += [f"$AN_CEC_INPUT_AXIS[{t}]=(AX1)", f"$AN_CEC_OUTPUT_AXIS[{t}]=({axis})",
-                f"$AN_CEC_STEP[{t}]={step:.4f}", f"$AN_CEC_MIN[{t}]={x_mm[0] + x0_mm:.4f}",
-                f"$AN_CEC_MAX[{t}]={x_mm[-1] + x0_mm:.4f}", f"$AN_CEC_DIRECTION[{t}]=0",
-                f"$AN_CEC_MULT_BY_TABLE[{t}]=0", f"$AN_CEC_IS_MODULO[{t}]=0"]
+        out += [
+            f"$AN_CEC_INPUT_AXIS[{t}]=(AX1)",
+            f"$AN_CEC_OUTPUT_AXIS[{t}]=({axis})",
+            f"$AN_CEC_STEP[{t}]={step:.4f}",
+            f"$AN_CEC_MIN[{t}]={x_mm[0] + x0_mm:.4f}",
+            f"$AN_CEC_MAX[{t}]={x_mm[-1] + x0_mm:.4f}",
+            f"$AN_CEC_DIRECTION[{t}]=0",
+            f"$AN_CEC_MULT_BY_TABLE[{t}]=0",
+            f"$AN_CEC_IS_MODULO[{t}]=0",
+        ]
     out.append("M17")
     return "\n".join(out) + "\n"
 
 
 def _heidenhain(x_mm, err, x0_mm, point, source, name="X_ISO230"):
-    head = _header_lines(point, source, x0_mm, "values: compensation = -error; X, EXX, EYX, EZX "
-                         "in mm, EAX, EBX, ECX in degrees")
+    head = _header_lines(
+        point,
+        source,
+        x0_mm,
+        "values: compensation = -error; X, EXX, EYX, EZX in mm, EAX, EBX, ECX in degrees",
+    )
     cols = ("NR", "X", "EXX", "EYX", "EZX", "EAX", "EBX", "ECX")
     widths = (5, 12, 13, 13, 13, 15, 15, 15)
     lines = [f"BEGIN {name}.COM MM", "".join(c.ljust(w) for c, w in zip(cols, widths)).rstrip()]
@@ -147,28 +173,47 @@ def _fanuc(x_mm, err, x0_mm, point, source, detection_unit_mm):
     ref = int(np.argmin(np.abs(x_mm)))
     du = detection_unit_mm
     out = ["%", f"(DIFFGUIDE FANUC-STYLE COMPENSATION, POINT {point})"]
-    out += [f"({h.upper().replace('(', '').replace(')', '')})"
-            for h in _header_lines(point, source, x0_mm, "values: incremental compensation = "
-                                   "change of -error from the previous point")]
+    out += [
+        f"({h.upper().replace('(', '').replace(')', '')})"
+        for h in _header_lines(
+            point,
+            source,
+            x0_mm,
+            "values: incremental compensation = change of -error from the previous point",
+        )
+    ]
     out.append(f"(DETECTION UNIT {du:g} MM, INTERVAL {step:g} MM = {round(step / du)} UNITS)")
     out.append(f"(REFERENCE POINT X = {x_mm[ref] + x0_mm:.4f} MM)")
-    for base, k, what in ((10000, 0, "PITCH EXX ON X"), (20000, 1, "STRAIGHTNESS EYX ON Y"),
-                          (30000, 2, "STRAIGHTNESS EZX ON Z")):
+    for base, k, what in (
+        (10000, 0, "PITCH EXX ON X"),
+        (20000, 1, "STRAIGHTNESS EYX ON Y"),
+        (30000, 2, "STRAIGHTNESS EZX ON Z"),
+    ):
         absolute = np.round(-(err[:, k] - err[ref, k]) * 1e3 / du).astype(int)
         inc = np.diff(absolute, prepend=absolute[0])
         n_ref = base + ref
-        out.append(f"({what}: REFERENCE NO. {n_ref} (3620), MOST NEGATIVE NO. {base} (3621), "
-                   f"MOST POSITIVE NO. {base + len(x_mm) - 1} (3622), INTERVAL "
-                   f"{round(step / du)} (3624))")
+        out.append(
+            f"({what}: REFERENCE NO. {n_ref} (3620), MOST NEGATIVE NO. {base} (3621), "
+            f"MOST POSITIVE NO. {base + len(x_mm) - 1} (3622), INTERVAL "
+            f"{round(step / du)} (3624))"
+        )
         for i in range(len(x_mm)):
             out.append(f"N{base + i} P{inc[i]}")
     out.append("%")
     return "\n".join(out) + "\n"
 
 
-def export_compensation(fmt: str, x_mm, errors, sigma=None, *, x0_mm: float = 0.0,
-                        point: str = "P", source: str = "",
-                        detection_unit_mm: float = 0.001) -> dict[str, str]:
+def export_compensation(
+    fmt: str,
+    x_mm,
+    errors,
+    sigma=None,
+    *,
+    x0_mm: float = 0.0,
+    point: str = "P",
+    source: str = "",
+    detection_unit_mm: float = 0.001,
+) -> dict[str, str]:
     """The files of a compensation export: ``{suffix: text}``, ``""`` the table itself,
     ``".sigma.csv"`` the σ companion (formats without room for σ, when ``sigma`` is given),
     ``".txt"`` a note (Heidenhain: the table syntax has no comments). See the module docstring.

@@ -50,18 +50,26 @@ def positioning_figures(up: np.ndarray, down: np.ndarray) -> dict:
     r = np.maximum(2 * su + 2 * sd + np.abs(b), np.maximum(ru, rd))
     both = np.concatenate([mu, md])
     return {
-        "targets": int(up.shape[0]), "runs_forward": int(up.shape[1]),
+        "targets": int(up.shape[0]),
+        "runs_forward": int(up.shape[1]),
         "runs_backward": int(down.shape[1]),
         "mean_bidirectional_deviation": ((mu + md) / 2).tolist(),
         "reversal_per_target": b.tolist(),
-        "B": float(np.max(np.abs(b))), "B_mean": float(np.mean(b)),
-        "R_up": float(ru.max()), "R_down": float(rd.max()), "R": float(r.max()),
-        "E_up": float(np.ptp(mu)), "E_down": float(np.ptp(md)), "E": float(np.ptp(both)),
+        "B": float(np.max(np.abs(b))),
+        "B_mean": float(np.mean(b)),
+        "R_up": float(ru.max()),
+        "R_down": float(rd.max()),
+        "R": float(r.max()),
+        "E_up": float(np.ptp(mu)),
+        "E_down": float(np.ptp(md)),
+        "E": float(np.ptp(both)),
         "M": float(np.ptp((mu + md) / 2)),
         "A_up": float(np.max(mu + 2 * su) - np.min(mu - 2 * su)),
         "A_down": float(np.max(md + 2 * sd) - np.min(md - 2 * sd)),
-        "A": float(max(np.max(mu + 2 * su), np.max(md + 2 * sd))
-                   - min(np.min(mu - 2 * su), np.min(md - 2 * sd))),
+        "A": float(
+            max(np.max(mu + 2 * su), np.max(md + 2 * sd))
+            - min(np.min(mu - 2 * su), np.min(md - 2 * sd))
+        ),
     }
 
 
@@ -87,8 +95,13 @@ def channel_figures(meas, scale: float = 1e6) -> list[dict]:
         if len(nu) != 1 or len(nd) != 1 or min(*nu, *nd) < MIN_RUNS or len(pos) < 2:
             continue
         fig = positioning_figures(np.array(ups) * scale, np.array(downs) * scale)
-        fig = {"point": point, "quantity": quantity, "instrument": inst,
-               "unit": "µm" if quantity in QUANTITIES[:3] else "µrad",
-               "positions_mm": [p * 1e-3 for p in pos], **fig}
+        fig = {
+            "point": point,
+            "quantity": quantity,
+            "instrument": inst,
+            "unit": "µm" if quantity in QUANTITIES[:3] else "µrad",
+            "positions_mm": [p * 1e-3 for p in pos],
+            **fig,
+        }
         out.append(fig)
     return out
