@@ -167,3 +167,23 @@ def test_fit_refuses_an_unknown_layout(tmp_path):
     bad = _write(tmp_path, "hello;world\n")
     assert main(["fit", "--measurements", str(bad), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     assert not (tmp_path / "o").exists()
+
+
+def test_one_csv_reader_for_every_file(tmp_path):
+    """The rules of diffguide.io.csvtable: the bundled truth file (a '#' comment first) reads;
+    ';' with decimal commas, an extra column (noted) and a typo (refused) behave as for the
+    measurements."""
+    from diffguide.io.csvtable import number, read_table
+
+    cols = ("rail", "s_mm", "vertical_um", "horizontal_um")
+    rows = read_table(DATA / "majda2012_truth.csv", cols)
+    assert rows[0][0] == 3 and rows[0][1]["rail"] == "1"  # line numbers of the file
+    notes = []
+    p = _write(tmp_path, "# c\nRail;s_mm;vertical_um;horizontal_um;T_C\n1;-2,5;0,75;1;20,5\n")
+    ((line, row),) = read_table(p, cols, notes=notes)
+    assert line == 3 and number(row, "s_mm", str(p), line, "mm") == -2.5
+    assert number(row, "vertical_um", str(p), line, "µm") == 0.75 and "t_c" in notes[0]
+    with pytest.raises(ValueError, match=r":1: unknown column 'vertical_mu', did you mean"):
+        read_table(_write(tmp_path, "rail,s_mm,vertical_mu,horizontal_um\n"), cols)
+    with pytest.raises(ValueError, match=r":2: field 's_mm': not a finite number"):
+        number({"s_mm": "x"}, "s_mm", "f.csv", 2, "mm")

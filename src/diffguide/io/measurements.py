@@ -55,17 +55,20 @@ Every row is validated; a bad row raises one ``ValueError`` ``"FILE:LINE: field 
 
 import csv
 import dataclasses
-import difflib
 import io
 import math
 import os
-import re
 from collections import defaultdict
 
 import numpy as np
 
 from ..inverse.data import LINEAR, QUANTITIES, Measurements
 from ..inverse.data import default_instrument as _default_instrument
+from .csvtable import decimal_point as decimal_point
+from .csvtable import iter_rows
+from .csvtable import read_text as read_text
+from .csvtable import sniff_delimiter as sniff_delimiter
+from .csvtable import split_line as split_line
 
 #: unit -> factor to SI (m or rad)
 LINEAR_UNITS = {"µm": 1e-6, "um": 1e-6, "μm": 1e-6, "mm": 1e-3, "nm": 1e-9, "in": 0.0254}
@@ -96,7 +99,6 @@ _FORWARD = ("forward", "fwd", "f", "+", "+1", "1", "up", "positive", "pos")
 _BACKWARD = ("backward", "bwd", "b", "reverse", "rev", "r", "-", "-1", "down", "negative", "neg")
 #: Field separators recognised (the header line decides: tab, then ';', else ',').
 DELIMITERS = ("\t", ";", ",")
-_MAX_BYTES = 200 * 1024 * 1024
 
 
 @dataclasses.dataclass(frozen=True)
@@ -152,26 +154,6 @@ def unit_key(unit: str, units: dict) -> str:
     return unit
 
 
-def sniff_delimiter(header: str) -> str:
-    """The field separator of a CSV whose header line is ``header``: tab or ``;`` when the
-    header contains one (instrument software of decimal-comma locales), else ``,``."""
-    for d in ("\t", ";"):
-        if d in header:
-            return d
-    return ","
-
-
-_DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+(?:[eE][+-]?\d+)?$")
-
-
-def decimal_point(field: str, delimiter: str) -> str:
-    """``"1,25"`` → ``"1.25"`` in a file whose separator is not the comma (a decimal comma);
-    anything else unchanged."""
-    if delimiter != "," and _DECIMAL_COMMA.match(field):
-        return field.replace(",", ".")
-    return field
-
-
 def _parse_row(row: dict, line: int) -> Reading:
     position = _number(row, "position_mm", "mm") * 1e-3
     point = row["point"].strip()
@@ -220,80 +202,26 @@ def _parse_row(row: dict, line: int) -> Reading:
                    instrument, z)
 
 
-def read_text(path: str | os.PathLike) -> str:
-    """The UTF-8 text of a measurement file (size and encoding checked; one-line errors)."""
-    name = os.fspath(path)
-    try:
-        size = os.path.getsize(name)
-        if size > _MAX_BYTES:
-            raise ValueError(f"{name}: file too large ({size} bytes > {_MAX_BYTES})")
-        with open(name, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise ValueError(f"{name}: cannot read the file: {exc.strerror or exc}") from None
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data[: exc.start].count(b"\n") + 1
-        raise ValueError(f"{name}:{line}: not UTF-8 text (byte {exc.start})") from None
-    if "\x00" in text:
-        line = text[: text.index("\x00")].count("\n") + 1
-        raise ValueError(f"{name}:{line}: the file contains a NUL byte (not a CSV text file)")
-    return text
-
-
 def read_readings(path: str | os.PathLike, x0_mm: float = 0.0,
                   notes: list | None = None) -> tuple[Reading, ...]:
     """Validated rows of a measurement CSV (not merged). Raises ``ValueError`` on bad input."""
     return parse_readings(read_text(path), os.fspath(path), x0_mm=x0_mm, notes=notes)
 
 
-def split_line(line: str, delimiter: str, name: str, number: int) -> list[str]:
-    """The stripped fields of one CSV line (quotes honoured; decimal commas made points)."""
-    try:
-        fields = next(csv.reader(io.StringIO(line), delimiter=delimiter, strict=True))
-    except (csv.Error, StopIteration) as exc:
-        raise ValueError(f"{name}:{number}: not a valid CSV line ({exc})") from None
-    return [decimal_point(f.strip(), delimiter) for f in fields]
-
-
 def parse_readings(text: str, name: str = "<text>", x0_mm: float = 0.0,
                    notes: list | None = None) -> tuple[Reading, ...]:
     """Validated rows from the text of a long measurement CSV (module docstring).
 
-    The separator is sniffed from the header line (tab, ``;`` or ``,``); with ``;`` or tab a
-    decimal comma is read as a decimal point. ``x0_mm``: the machine coordinate of the table
-    position x = 0 (subtracted from ``position_mm``). Columns that are not in the format are
-    ignored and named in ``notes`` (a list that gets one line per such column), unless their
-    name is close to a column of the format (a typo: an error).
+    The CSV rules are :mod:`diffguide.io.csvtable`'s (separator sniffed from the header line,
+    decimal comma with ``;`` or tab, ``#`` comments, other columns ignored and named in
+    ``notes`` unless close to a column of the format). ``x0_mm``: the machine coordinate of the
+    table position x = 0 (subtracted from ``position_mm``).
     """
-    if "\x00" in text:
-        line = text[: text.index("\x00")].count("\n") + 1
-        raise ValueError(f"{name}:{line}: the file contains a NUL byte (not a CSV text file)")
-    lines = text.splitlines()
-    header, header_line, delimiter = None, 0, ","
     readings = []
     points: dict[str, tuple[tuple[float, float], int]] = {}
-    for number, line in enumerate(lines, start=1):
-        stripped = line.strip()
-        if not stripped or stripped.startswith("#"):
-            continue
-        if header is None:
-            delimiter = sniff_delimiter(line)
-        fields = split_line(line, delimiter, name, number)
-        if header is None:
-            header, header_line = [f.lower() for f in fields], number
-            ignored = _check_header(header, name, number)
-            if ignored and notes is not None:
-                notes.append(f"{name}:{number}: column(s) {', '.join(ignored)} ignored (not "
-                             "part of the measurement format)")
-            continue
-        if len(fields) != len(header):
-            raise ValueError(
-                f"{name}:{number}: {len(fields)} fields, the header (line {header_line}) has "
-                f"{len(header)} ({delimiter.join(header)})"
-            )
-        row = dict(zip(header, fields))
+    header_line = None
+    for number, row in iter_rows(text, name, REQUIRED, OPTIONAL, notes):
+        header_line = header_line or number
         try:
             reading = _parse_row(row, number)
         except _RowError as exc:
@@ -311,35 +239,16 @@ def parse_readings(text: str, name: str = "<text>", x0_mm: float = 0.0,
                 "one location per point name)"
             )
         readings.append(reading)
-    if header is None:
-        raise ValueError(f"{name}:1: no header line (expected {','.join(REQUIRED)}[,...])")
     if not readings:
-        raise ValueError(f"{name}:{header_line}: no data rows after the header")
+        raise ValueError(f"{name}:{_header_line(text)}: no data rows after the header")
     return tuple(readings)
 
 
-def _check_header(header, name, line) -> list[str]:
-    """Check a long header; returns the columns to ignore (not in the format, not a typo)."""
-    allowed = REQUIRED + OPTIONAL
-    ignored = []
-    for f in header:
-        if f not in allowed:
-            close = difflib.get_close_matches(f, allowed, n=1, cutoff=0.75)
-            if close or not f:
-                hint = f", did you mean {close[0]!r}?" if close else ""
-                raise ValueError(f"{name}:{line}: unknown column {f!r}{hint} (allowed "
-                                 f"{', '.join(allowed)}; other columns are ignored)")
-            ignored.append(f)
-    if len(set(header)) != len(header):
-        dup = sorted({f for f in header if header.count(f) > 1})
-        raise ValueError(f"{name}:{line}: duplicate column(s) {', '.join(dup)}")
-    missing = [f for f in REQUIRED if f not in header]
-    if missing:
-        raise ValueError(
-            f"{name}:{line}: missing column(s) {', '.join(missing)} (required "
-            f"{', '.join(REQUIRED)})"
-        )
-    return ignored
+def _header_line(text: str) -> int:
+    for number, line in enumerate(text.splitlines(), start=1):
+        if line.strip() and not line.strip().startswith("#"):
+            return number
+    return 1
 
 
 def _reject_outliers(groups) -> set[int]:
