@@ -24,9 +24,10 @@ the table top with the Abbe terms ``A_EXX = EBX``, ``A_EYX = −EAX`` (0 otherwi
 channel's zero — profiled out as the channel's weighted mean misfit — and ``w_i ∈ {0, 1}`` (0 for
 merged values rejected as outliers, below). The fit minimises
 
-.. math::  ‖r(x)‖² + λ‖GZθ‖² + ‖q‖² + ε²‖ℓ‖²
+.. math::  ‖r(x)‖² + λθᵀΩθ + ‖q‖² + ε²‖ℓ‖²,\qquad
+           θᵀΩθ = Σ∫e''² ds + κ ℓ_r⁻⁴Σ∫e² ds
 
-(``‖Gc‖² = Σ∫e''² ds + ℓ_r⁻⁴Σ∫e² ds``; ``ε`` = 1e-3 µm⁻¹ keeps the lead term proper) by
+(``ε`` = 1e-3 µm⁻¹ keeps the lead term proper; λ and κ chosen by the data, :mod:`.weight`) by
 Levenberg–Marquardt (:func:`_levenberg_marquardt`: one compiled linearisation — residual and
 ``jacfwd`` Jacobian through the implicit equilibria — per step, the damped normal equations
 solved in NumPy), started from the Gauss–Newton step at ``x = 0``. λ is chosen on the problem
@@ -55,13 +56,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.precision import require_x64
-from ..machine.kinematics import joint_errors
-from ..machine.equilibrium import Machine
-from .data import QUANTITIES, Measurements
 from ..guideway.rails import SplineRail, bspline_matrix
+from ..machine.equilibrium import Machine
+from ..machine.kinematics import joint_errors
 from .basis import RailBasis, null_space_basis
-from .structure import MachineFamily, StructurePriors
-from .weight import WeightChoice, choose_weight, fixed_weight, project_out
+from .data import QUANTITIES, Measurements
+from .structure import DETERMINED_RATIO, MachineFamily, StructurePriors
+from .weight import WeightChoice, choose_prior, fixed_weight, project_out
 
 _UM = 1e-6
 #: Knot spacing of the lead-error spline (m), at most; at least 4 coefficients over the stroke.
@@ -210,7 +211,8 @@ class RailFit(eqx.Module):
         jacobian: whitened data Jacobian ``∂r/∂x`` at the solution (all unknowns);
             jacobian_full: the same w.r.t. all rail coefficients ``c`` (µm), gauge modes
             included. penalty: ``P``. n_theta: rail unknowns (first columns of ``jacobian``).
-            Omega: ``ZᵀGᵀGZ``. rigid: fitted with the rigid-table model.
+            Omega: the rail prior's matrix ``Ω`` (λ excluded). rigid: fitted with the rigid-table
+            model.
     """
 
     basis: RailBasis
@@ -371,9 +373,8 @@ def fit_rails(
     fix_slope = ("EZX" not in qs, "EYX" not in qs)
     C, gauge = basis.gauge_functionals(fix_slope)
     Z = null_space_basis(C, basis.size)
-    G = np.concatenate([basis.penalty_factor(), basis.amplitude_factor()])
-    GZ = G @ Z
-    Omega = GZ.T @ GZ
+    G2, G0 = basis.penalty_factor() @ Z, basis.amplitude_factor() @ Z
+    Om_curv, Om_amp = G2.T @ G2, G0.T @ G0
     lead_B, lead_basis = _lead_basis(meas)
     n_theta, n_q, n_l = Z.shape[1], family.n_params, lead_B.shape[1]
     n_x = n_theta + n_q + n_l
@@ -389,9 +390,9 @@ def fit_rails(
     if meas.n - n_chan - n_l <= 0:
         raise ValueError(f"{meas.n} measurements in {n_chan} channels: nothing to fit")
 
-    def penalty(lam_):
+    def penalty(c):
         P = np.zeros((n_x, n_x))
-        P[:n_theta, :n_theta] = lam_ * Omega
+        P[:n_theta, :n_theta] = c.lam * (Om_curv + c.kappa * Om_amp)
         P[n_theta:n_theta + n_q, n_theta:n_theta + n_q] = np.eye(n_q)
         P[n_theta + n_q:, n_theta + n_q:] = LEAD_RIDGE**2 * np.eye(n_l)
         return P
@@ -403,8 +404,8 @@ def fit_rails(
         Jt, yp, rank_f = project_out(J[:, n_theta:], J[:, :n_theta], y)
         n_eff = used - n_chan - rank_f
         if lam is not None:
-            return fixed_weight(lam, Jt, yp, Omega, n_eff)
-        return choose_weight(Jt, yp, Omega, n_eff, criterion)
+            return fixed_weight(lam, Jt, yp, Om_curv + Om_amp, n_eff)
+        return choose_prior(Jt, yp, Om_curv, Om_amp, n_eff, criterion)
 
     x = np.zeros(n_x)
     r, J, pred, ok, Jc = linearise(x)
@@ -413,7 +414,7 @@ def fit_rails(
                          "prior structure; check the machine configuration")
     weights = np.ones(meas.n)
     choice = choose(J, r, x, weights)
-    P = penalty(choice.lam)
+    P = penalty(choice)
     x = np.linalg.solve(_spd(J.T @ J + P), -(J.T @ r))  # Gauss–Newton start
     steps, converged, message = 0, True, "converged"
     outliers = np.zeros(0, int)
@@ -445,7 +446,7 @@ def fit_rails(
             if abs(np.log(new.lam / choice.lam)) >= np.log(1.5):
                 redo = True
             choice = new
-            P = penalty(choice.lam)
+            P = penalty(choice)
         if not redo:
             break
     if method == "linear":  # residuals of the linear model at the solution
@@ -475,6 +476,11 @@ def fit_rails(
     cov = Z @ cov_x[:n_theta, :n_theta] @ Z.T * _UM**2
     structure = _structure_report(family, x[n_theta:n_theta + n_q],
                                   cov_x[n_theta:n_theta + n_q, n_theta:n_theta + n_q])
+    for name, v in structure.items():
+        if v["at_bound"]:
+            message += (f"; the {name} estimate sits on the edge of its range "
+                        f"({v['value']:.4g}): the data push it outside the prior range, so "
+                        "treat it, and the rails' bands, with suspicion")
     if choice.at_bound:
         message += (f"; the {choice.criterion} weight search ended on its range's edge "
                     f"(lambda {choice.lam:.3g})")
@@ -484,7 +490,8 @@ def fit_rails(
         structure=structure, lead=x[n_theta + n_q:] * _UM, lead_basis=lead_basis,
         fitted=fitted, residual=residual, offsets=offsets, outliers=outliers, chi2=chi2,
         dof=dof, edf=edf, sigma_scale=sigma_scale, converged=bool(converged), message=message,
-        steps=steps, jacobian=J, jacobian_full=Jc, penalty=P, n_theta=n_theta, Omega=Omega,
+        steps=steps, jacobian=J, jacobian_full=Jc, penalty=P, n_theta=n_theta,
+        Omega=Om_curv + choice.kappa * Om_amp,
         rigid=bool(base.rigid),
     )
 
@@ -519,9 +526,12 @@ def _structure_report(family: MachineFamily, q, cov_q) -> dict:
             "prior_value": pr.value,
             "prior_range": [pr.lo, pr.hi],
             "prior_sigma_log": float(prior_sig[i]),
-            "determined": bool(sd_log < 0.7 * prior_sig[i]),
-            "at_bound": bool(u <= lo + 1e-9 or u >= hi - 1e-9),
+            "at_bound": bool(u <= lo + 1e-6 or u >= hi - 1e-6),
         }
+        # at the edge of the interpolation range the model is flat in the parameter: its σ
+        # there says nothing, so the parameter is not determined
+        out[name]["determined"] = bool(sd_log < DETERMINED_RATIO * prior_sig[i]
+                                       and not out[name]["at_bound"])
     return out
 
 

@@ -45,7 +45,8 @@ class WeightChoice:
         lam: the weight. criterion: ``"ml"``, ``"gcv"`` or ``"fixed"``. score: the criterion's
             value at ``lam``. edf: effective parameters of the rail unknowns at ``lam``.
         n_eff: data count after the projections. at_bound: the minimum lies on the search
-            range's edge. table: ``(λ, score, edf)`` rows tried.
+            range's edge. table: ``(λ, score, edf)`` rows tried. kappa: the weight of the
+            amplitude term in the prior (:func:`choose_prior`).
     """
 
     lam: float
@@ -55,6 +56,7 @@ class WeightChoice:
     n_eff: int
     at_bound: bool
     table: np.ndarray
+    kappa: float = 1.0
 
 
 class _Spectrum:
@@ -124,6 +126,31 @@ def choose_weight(J, y, Omega, n_eff: int, criterion: str = "ml") -> WeightChoic
                       np.array([sp.edf(g) for g in lams])], axis=1)
     return WeightChoice(lam, criterion, float(fs[j]), sp.edf(lam), n_eff, at_bound,
                         table[np.argsort(table[:, 0])])
+
+
+#: Weights tried for the amplitude term of the prior, relative to the curvature term's
+#: normalisation (:func:`choose_prior`).
+KAPPAS = tuple(10.0 ** k for k in range(0, 11))
+
+
+def choose_prior(J, y, Omega_curv, Omega_amp, n_eff: int, criterion: str = "ml") -> WeightChoice:
+    """The prior's shape and weight: ``λ(Ω_curv + κ Ω_amp)``.
+
+    With the marginal likelihood, ``κ`` is chosen too, over :data:`KAPPAS`: ``κ`` small gives the
+    curvature prior (content falls as wavelength⁴: smooth rails), ``κ`` large a prior nearly
+    flat in wavelength. The data choose how much short-wave content to expect from the wavelengths
+    they do see, and the wavelengths they cannot see (the carriage-averaging and
+    carriage-spacing blind spots) get the σ of that prior instead of the curvature prior's
+    near-zero σ. GCV keeps ``κ = 1`` (a second hyperparameter overfits GCV).
+    """
+    if criterion != "ml":
+        return choose_weight(J, y, Omega_curv + Omega_amp, n_eff, criterion)
+    best = None
+    for kappa in KAPPAS:
+        c = choose_weight(J, y, Omega_curv + kappa * Omega_amp, n_eff, criterion)
+        if best is None or c.score < best.score:
+            best = dataclasses.replace(c, kappa=kappa)
+    return best
 
 
 def fixed_weight(lam: float, J, y, Omega, n_eff: int) -> WeightChoice:
