@@ -192,6 +192,8 @@ def test_siemens_cec_negated_in_mm():
 
 def test_heidenhain_negated_mm_and_degrees():
     files = _files("heidenhain")
+    assert set(files) == {"", ".note.txt", ".sigma.csv"}  # never the table's own name
+    assert "compensation = -error" in files[".note.txt"]
     X_m, comp = parse_heidenhain(files[""])
     np.testing.assert_allclose(X_m, X + X0, atol=5e-5)
     np.testing.assert_allclose(comp[:, :3], -ERR[:, :3], atol=5e-11 + 1e-15)

@@ -216,7 +216,8 @@ def export_compensation(
 ) -> dict[str, str]:
     """The files of a compensation export: ``{suffix: text}``, ``""`` the table itself,
     ``".sigma.csv"`` the σ companion (formats without room for σ, when ``sigma`` is given),
-    ``".txt"`` a note (Heidenhain: the table syntax has no comments). See the module docstring.
+    ``".note.txt"`` a note (Heidenhain: the table syntax has no comments). See the module
+    docstring.
     """
     x_mm = np.asarray(x_mm, float)
     err = np.asarray(errors, float)
@@ -233,7 +234,7 @@ def export_compensation(
         files = {"": _siemens(x_mm, err, x0_mm, point, source)}
     elif fmt == "heidenhain":
         table, note = _heidenhain(x_mm, err, x0_mm, point, source)
-        files = {"": table, ".txt": note}
+        files = {"": table, ".note.txt": note}
     else:
         files = {"": _fanuc(x_mm, err, x0_mm, point, source, detection_unit_mm)}
     if sig is not None:
