@@ -72,3 +72,23 @@ def test_fixed_weight_and_projection():
     F = rng.standard_normal((len(y), 3))
     Jp, yp, rank = project_out(F, J, y)
     assert rank == 3 and np.abs(F.T @ Jp).max() < 1e-10 and np.abs(F.T @ yp).max() < 1e-10
+
+
+def test_prior_shape_follows_the_data():
+    """Direct noisy samples of one profile: a smooth truth (a quadratic) keeps the curvature
+    prior (small κ); a rough one (independent coefficients) moves to a prior nearly flat in
+    wavelength (large κ) — the marginal likelihood picks the spectrum the data show."""
+    from diffguide.inverse import RailBasis
+    from diffguide.inverse.weight import choose_prior
+
+    b = RailBasis.covering(-0.5, 0.5, 0.05)
+    s = np.linspace(-0.5, 0.5, 300)
+    B = b.matrix(s)
+    G2 = b.penalty_factor()[:, : b.n_coeffs][: (b.n_coeffs - 3) * 2]
+    G0 = b.amplitude_factor()[:, : b.n_coeffs][: (b.n_coeffs - 3) * 3]
+    rng = np.random.default_rng(11)
+    smooth = B @ np.linalg.lstsq(B, 3 * s**2, rcond=None)[0] + 0.01 * rng.standard_normal(300)
+    rough = B @ rng.standard_normal(b.n_coeffs) + 0.01 * rng.standard_normal(300)
+    k_smooth = choose_prior(B / 0.01, smooth / 0.01, G2.T @ G2, G0.T @ G0, 300).kappa
+    k_rough = choose_prior(B / 0.01, rough / 0.01, G2.T @ G2, G0.T @ G0, 300).kappa
+    assert k_rough >= 1e3 * k_smooth, (k_smooth, k_rough)
