@@ -1,4 +1,4 @@
-r"""Measured joint kinematic errors: read, validate and merge a measurement CSV (SPEC §2.5).
+r"""Measured joint kinematic errors: read, validate and merge a measurement CSV.
 
 File format (UTF-8, one header line; blank lines and lines starting with ``#`` are skipped; the
 separator is ``,``, ``;`` or tab, sniffed from the header line; with ``;`` or tab a decimal
