@@ -73,6 +73,7 @@ def solve_equilibrium(
     *,
     tol: float = 1e-9,
     max_steps: int = 60,
+    throw: bool = False,
 ) -> tuple[jax.Array, optx.RESULTS, jax.Array]:
     """Minimise the convex ``potential(y, args)``; derivatives w.r.t. ``args`` are implicit.
 
@@ -83,14 +84,25 @@ def solve_equilibrium(
         y0: starting point. args: everything the potential depends on (a pytree).
         tol: stop when the largest Newton step component is below ``tol`` (units of ``y``).
         max_steps: Newton step limit.
+        throw: raise (``eqx.error_if``, also under ``jit``) when the solve fails, instead of
+            reporting it in ``result`` only. Under ``vmap`` one failure fails the whole batch,
+            so batched callers leave it off and read ``result`` per item.
 
     Returns:
-        ``(y, result, steps)``: the minimiser, ``optx.RESULTS.successful`` or
-        ``nonlinear_max_steps_reached`` (also for a non-finite iterate), and the steps taken.
+        ``(y, result, steps)``: the minimiser, the result code — ``optx.RESULTS.successful``,
+        ``nonfinite`` (an iterate became inf or NaN) or ``nonlinear_max_steps_reached`` — and
+        the steps taken.
     """
     inputs = (potential, grad_hess, y0, args, max_steps, tol)
     y, (converged, steps) = _ADJOINT.apply(_newton_loop, _rewrite, inputs, frozenset())
+    finite = jnp.all(jnp.isfinite(jax.lax.stop_gradient(y)))
     result = optx.RESULTS.where(
-        converged, optx.RESULTS.successful, optx.RESULTS.nonlinear_max_steps_reached
+        converged,
+        optx.RESULTS.successful,
+        optx.RESULTS.where(
+            finite, optx.RESULTS.nonlinear_max_steps_reached, optx.RESULTS.nonfinite
+        ),
     )
+    if throw:
+        y = result.error_if(y, result != optx.RESULTS.successful)
     return y, result, steps

@@ -79,6 +79,14 @@ def machine_config(args) -> dict:
     return default_config()
 
 
+def machine_spec(args):
+    """The :class:`~diffguide.machine.spec.MachineSpec` (SI) chosen by ``--config`` or
+    ``--preset``."""
+    from ..io.config import spec_from_config
+
+    return spec_from_config(machine_config(args))
+
+
 def parse_mesh_text(text: str) -> tuple[int, int]:
     """``"20x10"`` → ``(20, 10)``; a clear ``ValueError`` otherwise."""
     parts = str(text).lower().replace("×", "x").split("x")

@@ -22,8 +22,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from ..io.atomic import atomic_write_text
     from ..io.config import default_config, dump_config, load_config
-    from ..io.files import atomic_write_text
 
     if args.check:
         cfg = load_config(args.check)

@@ -144,29 +144,11 @@ def _check_inputs(meas, args, cfg):
 
 
 def read_truth(path, s_m):
-    """Truth profiles ``(2, 2, len(s))`` (m) interpolated from a truth CSV at ``s`` (m)."""
-    import csv
+    """Truth profiles ``(2, 2, len(s))`` (m) at ``s`` (m) from a rails CSV
+    (:func:`diffguide.io.rails_csv.rails_at`: the reader of ``simulate --rails``)."""
+    from ..io.rails_csv import rails_at
 
-    rows = {1: [], 2: []}
-    try:
-        with open(path, encoding="utf-8") as fh:
-            lines = [ln for ln in fh if ln.strip() and not ln.startswith("#")]
-        for k, row in enumerate(csv.DictReader(lines), start=2):
-            try:
-                rows[int(row["rail"])].append(
-                    (float(row["s_mm"]), float(row["vertical_um"]), float(row["horizontal_um"])))
-            except (KeyError, ValueError, TypeError) as exc:
-                raise ValueError(f"{path}: row {k}: bad truth row ({exc})") from None
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot read the file: {exc.strerror or exc}") from None
-    out = np.zeros((2, 2, len(s_m)))
-    for r in (1, 2):
-        if len(rows[r]) < 2:
-            raise ValueError(f"{path}: rail {r} needs at least two rows")
-        a = np.array(sorted(rows[r]))
-        out[r - 1, 0] = np.interp(s_m * 1e3, a[:, 0], a[:, 1]) * 1e-6
-        out[r - 1, 1] = np.interp(s_m * 1e3, a[:, 0], a[:, 2]) * 1e-6
-    return out
+    return rails_at(path, s_m)
 
 
 def _rails_csv(s_m, val, sig) -> str:
@@ -322,6 +304,7 @@ def _write_dir(out: Path, files: dict[str, object]) -> None:
 
 def run(args) -> int:
     from ..inverse import MachineFamily, fit_rails, identifiability
+    from ..io.config import spec_from_config
     from ..io.importers import read_any
     from ..machine.build import build_machine
     from ..studies.iso230_2 import channel_figures
@@ -330,6 +313,7 @@ def run(args) -> int:
     t_start = time.perf_counter()
     _check_out(Path(args.out))
     cfg = machine_config(args)
+    spec = spec_from_config(cfg)
     notes: list[str] = []
     info: dict = {}
     meas = read_any(args.measurements, args.layout, args.x0_mm, notes, info)
@@ -345,7 +329,7 @@ def run(args) -> int:
     points = {n: tuple(map(float, xy)) for n, xy in zip(meas.point_names, meas.points_xy)}
 
     def make_machine(**kw):
-        return build_machine(cfg, nx=args.nx, ny=args.ny, points=points, **kw)
+        return build_machine(spec, nx=args.nx, ny=args.ny, points=points, **kw)
 
     family = MachineFamily.build(make_machine, priors, progress=lambda t: _say(args, t))
     machine = family.base
@@ -501,7 +485,7 @@ def _export_compensation(args, cfg, measured_points, fit, family, x0_mm=0.0) -> 
     """The fitted model's errors at ``--at`` over the stroke, as a compensation table in
     ``--format`` (machine coordinates ``X = x + x0``; σ from the posterior), with a warning
     for each point where a rigid-body compensation from ``--at`` would not hold."""
-    from ..io.files import atomic_write_text
+    from ..io.atomic import atomic_write_text
     from ..machine.build import build_machine
     from ..machine.kinematics import joint_errors
     from ..studies.compensation import location_warnings
@@ -518,7 +502,7 @@ def _export_compensation(args, cfg, measured_points, fit, family, x0_mm=0.0) -> 
         kw["thickness"] = fit.structure["thickness"]["value"]
     if "preload" in fit.structure:
         kw["preload_fraction"] = fit.structure["preload"]["value"]
-    machine = build_machine(cfg, nx=args.nx, ny=args.ny, points=points, **kw)
+    machine = build_machine(spec_from_config(cfg), nx=args.nx, ny=args.ny, points=points, **kw)
     half = cfg["machine"]["stroke_mm"] / 2
     x_mm = np.linspace(-half, half, args.comp_points)
     je = joint_errors(machine, fit.rails(), x_mm * 1e-3)

@@ -1,12 +1,13 @@
 """``diffguide montecarlo``: joint-error distributions for random rails (a tolerance study)."""
 
 import argparse
+import os
 import sys
 import time
 
 import numpy as np
 
-from ..io.files import atomic_savefig, atomic_write_text
+from ..io.atomic import atomic_savefig, atomic_write_text
 from ._common import add_machine_arguments
 from .simulate import default_positions, parse_mesh, parse_positions
 
@@ -114,9 +115,9 @@ def summary(result) -> str:
     """Percentiles (5, 50, 95 %) of the ranges at each point and of the corner roll differences."""
     ok = result.converged
     lines = ["percentiles over converged samples (5 % / 50 % / 95 %):"]
-    from ..machine.kinematics import ERROR_NAMES, USER_UNITS
+    from ..io.units import ERRORS
 
-    head = "  point " + "".join(f"{n + ' ' + u:>24}" for n, u in zip(ERROR_NAMES, USER_UNITS))
+    head = "  point " + "".join(f"{e.name + ' ' + e.unit:>24}" for e in ERRORS)
     lines.append(head)
     for j, p in enumerate(result.point_names):
         cells = []
@@ -133,14 +134,38 @@ def summary(result) -> str:
     return "\n".join(lines)
 
 
-def run(args) -> int:
-    from ..studies.montecarlo import split_cpu_into_devices
+def split_cpu_into_devices(n: int | None = None) -> bool:
+    """Expose the host's cores as ``n`` JAX CPU devices (default: all cores), so that
+    :func:`~diffguide.batched_sweep` shards over them and runs one Newton stream per core.
 
+    XLA runs the small, batched operations of a sweep mostly on one thread; separate devices run
+    in parallel (measured on 2 cores: 1.4× the throughput of one device, under load). Sets
+    ``--xla_force_host_platform_device_count`` in ``XLA_FLAGS``, which only takes effect before
+    JAX initializes its backends (the first array). Returns whether it could still take effect.
+    Accelerators are unaffected (``jax.devices()`` stays the GPUs).
+    """
+    n = (os.cpu_count() or 1) if n is None else int(n)
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_force_host_platform_device_count" in flags:
+        return False
+    try:
+        from jax._src import xla_bridge
+
+        if xla_bridge.backends_are_initialized():
+            return False
+    except (ImportError, AttributeError):  # private API moved: set the flag and hope
+        pass
+    os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
+    return True
+
+
+def run(args) -> int:
     _check(args)
     if args.cpu_devices is None or args.cpu_devices > 1:
         split_cpu_into_devices(args.cpu_devices)  # before the first array; no-op afterwards
 
     from ..inverse.fit import visited_range
+    from ..io.config import spec_from_config
     from ..machine.build import build_machine
     from ..studies.montecarlo import batched_sweep
     from ..studies.random_rails import GaussianRailModel, default_knots, sample_rails
@@ -162,7 +187,7 @@ def run(args) -> int:
     )
     name = args.config or args.preset
     say(f"building the {name} machine (table mesh {nx}x{ny}) ...")
-    machine = build_machine(cfg, nx=nx, ny=ny)
+    machine = build_machine(spec_from_config(cfg), nx=nx, ny=ny)
     # the rails must cover what the elements visit: the default ±0.6 m knots (majda2012) or,
     # for a longer machine, the visited range with a margin
     lo, hi = visited_range(machine, positions)

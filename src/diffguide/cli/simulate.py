@@ -4,7 +4,7 @@ import argparse
 
 import numpy as np
 
-from ..io.files import atomic_savefig, atomic_write_text
+from ..io.atomic import atomic_savefig, atomic_write_text
 from ._common import add_machine_arguments, machine_config
 
 
@@ -126,9 +126,11 @@ def parse_mesh(text: str) -> tuple[int, int]:
 def run(args) -> int:
     import sys
 
-    from ..io.files import read_rails_csv
+    from ..io.config import spec_from_config
+    from ..io.rails_csv import read_rails_csv
+    from ..io.units import error_columns
     from ..machine.build import build_machine
-    from ..machine.kinematics import ERROR_NAMES, joint_errors
+    from ..machine.kinematics import joint_errors
     from ..machine.majda2012 import paper_variant
 
     cfg = machine_config(args)
@@ -145,7 +147,7 @@ def run(args) -> int:
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     name = args.config or args.preset
     say(f"building the {name} machine ...")
-    machine = build_machine(cfg, nx=nx, ny=ny)
+    machine = build_machine(spec_from_config(cfg), nx=nx, ny=ny)
     if args.rigid_table:
         machine = machine.with_rigid_table()
     say(f"solving the equilibrium at {len(positions)} positions ...")
@@ -160,9 +162,7 @@ def run(args) -> int:
         )
         return 3
     errs = je.user_units()
-    header = "position_mm,point,x_mm,y_mm," + ",".join(
-        f"{n}_{'um' if k < 3 else 'urad'}" for k, n in enumerate(ERROR_NAMES)
-    )
+    header = "position_mm,point,x_mm,y_mm," + ",".join(error_columns())
     lines = [header]
     xy = np.asarray(je.points_xy) * 1e3
     for i, x in enumerate(positions):

@@ -3,7 +3,7 @@
 
 import numpy as np
 
-from ..io.files import atomic_savefig, atomic_write_text
+from ..io.atomic import atomic_savefig, atomic_write_text
 
 PRESETS = ("majda2012", "majda2012-rivin", "roller25")
 
@@ -57,10 +57,10 @@ def run(args) -> int:
     if args.steps < 2:
         raise ValueError(f"--steps must be >= 2, got {args.steps}")
     if args.config:
-        from ..io.config import load_config
-        from ..machine.build import carriage_from_config
+        from ..guideway.carriage import carriage_from_spec
+        from ..io.config import load_config, spec_from_config
 
-        carriage = carriage_from_config(load_config(args.config))
+        carriage = carriage_from_spec(spec_from_config(load_config(args.config)).carriage)
     else:
         carriage = carriage_for(args.preset)
     loads = np.linspace(0.0, args.max_load, args.steps)

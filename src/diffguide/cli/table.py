@@ -3,7 +3,7 @@
 import argparse
 import sys
 
-from ._common import add_machine_arguments, machine_config
+from ._common import add_machine_arguments, machine_spec
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -34,11 +34,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     import numpy as np
 
-    from ..io.files import atomic_write_text
-    from ..machine.build import table_from_config
+    from ..io.atomic import atomic_write_text
+    from ..machine.build import table_from_spec, with_overrides
 
     say = (lambda *a: None) if args.quiet else print
-    model = table_from_config(machine_config(args), nx=args.nx, ny=args.ny, nut=False)
+    spec = with_overrides(machine_spec(args), nx=args.nx, ny=args.ny)
+    model = table_from_spec(spec, nut=False)
     cond = model.condense()
     u = np.asarray(cond.node_u0)  # the four carriage reference points held at u = 0
     pts = np.asarray(cond.r0).reshape(-1, 6)
@@ -64,7 +65,7 @@ def run(args) -> int:
         atomic_write_text(args.out, "\n".join(lines) + "\n")
         say(f"wrote {args.out}")
     if args.plot:
-        from ..io.files import atomic_savefig
+        from ..io.atomic import atomic_savefig
         from ..plotting.table import plot_table
 
         fig = plot_table(

@@ -2,7 +2,8 @@
 
 Layers: :mod:`.materials` → :mod:`.mesh` (structured table + ribs) → :mod:`.shell`,
 :mod:`.beam` (pure element functions) → :mod:`.assemble` (vmapped element matrices, scatter,
-supports) → :mod:`.condense` (rigid patches, control points) → :mod:`.table` (presets).
+supports) → :mod:`.condense` (rigid patches, control points) → :mod:`.table` (table spec,
+table on its patches).
 SI units; node DOF ``(ux, uy, uz, rx, ry, rz)``; X along the rails, Y across, Z up.
 """
 
@@ -74,12 +75,23 @@ from .mesh import (
 )
 from .shell import shell_load as shell_load
 from .shell import shell_stiffness as shell_stiffness
-from .table import (
-    TableModel as TableModel,
-)
-from .table import (
-    majda2012_table as majda2012_table,
-)
-from .table import (
-    table_model as table_model,
-)
+from .table import TableModel as TableModel
+from .table import TableSpec as TableSpec
+from .table import table_model as table_model
+
+
+def __getattr__(name: str):
+    """``majda2012_table`` moved to :mod:`diffguide.machine.majda2012` (the fe layer knows no
+    presets); the old name works for one release."""
+    if name == "majda2012_table":
+        import warnings
+
+        from ..machine.majda2012 import majda2012_table
+
+        warnings.warn(
+            "diffguide.fe.majda2012_table moved to diffguide.machine.majda2012.majda2012_table",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return majda2012_table
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -44,10 +44,12 @@ class Material(eqx.Module):
         return jnp.asarray(self.E) / (2.0 * (1.0 + jnp.asarray(self.nu)))
 
 
-#: Grey cast iron EN-GJL-250 (as ``presets.MAJDA2012_TABLE``): 110 GPa, 0.26, 7200 kg/m³.
-CAST_IRON = Material(E=110e9, nu=0.26, rho=7200.0, name="cast iron")
-#: Structural steel: 210 GPa, 0.3, 7850 kg/m³.
-STEEL = Material(E=210e9, nu=0.3, rho=7850.0, name="steel")
+from .. import presets  # noqa: E402  (imports nothing from diffguide at import time)
+
+#: Grey cast iron EN-GJL-250 (:func:`diffguide.presets.cast_iron`).
+CAST_IRON = presets.cast_iron()
+#: Structural steel (:func:`diffguide.presets.steel`).
+STEEL = presets.steel()
 
 MATERIALS = {"cast_iron": CAST_IRON, "steel": STEEL}
 
@@ -57,6 +59,4 @@ def material(name: str) -> Material:
     try:
         return MATERIALS[name]
     except KeyError:
-        raise ValueError(
-            f"material must be one of {sorted(MATERIALS)}, got {name!r}"
-        ) from None
+        raise ValueError(f"material must be one of {sorted(MATERIALS)}, got {name!r}") from None

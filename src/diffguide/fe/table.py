@@ -1,25 +1,46 @@
-"""The table of a preset machine: mesh + plate + carriage/nut patches + control points.
+"""The table of a machine: mesh + plate + carriage/nut patches + control points.
 
-:func:`majda2012_table` builds the ``majda2012`` table from ``presets.MAJDA2012_TABLE``,
-``MAJDA2012_LAYOUT`` and ``MAJDA2012_POINTS``: a 1000 × 500 × 50 mm cast-iron plate on four
-carriages (rails at y = ∓170 mm, carriages at x = ∓160 mm, footprints 60 × 48 mm bolted to the
-underside) and the screw nut under the centre. Grid lines are added at every footprint edge and
-at the control points, so footprints hold whole elements and points sit on nodes.
+:class:`TableSpec` is the plate (size, thickness, material, mesh divisions, SI);
+:func:`table_model` puts it on carriages at ``carriage_x × rail_y`` and a screw nut. Grid lines
+are added at every footprint edge and at the control points, so footprints hold whole elements
+and points sit on nodes. (The ``majda2012`` table:
+:func:`diffguide.machine.majda2012.majda2012_table`.)
 """
 
 from collections.abc import Sequence
 
 import equinox as eqx
 
-from ..presets import MAJDA2012_LAYOUT, MAJDA2012_POINTS, MAJDA2012_TABLE
+from .._core.types import Array, Float
 from .assemble import PlateSection
 from .condense import CondensedTable, RigidPatch, condense, patch_lines
 from .materials import Material
 from .mesh import Rib, TableMesh, table_mesh
 
-#: Half-size (m) of the nut patch: a 50 × 50 mm flange (nut housing of a 32 mm screw, bolted
-#: under the table centre).
-NUT_HALF = 0.025
+
+class TableSpec(eqx.Module):
+    """The table plate, SI units (the ``[table]`` section of a machine file).
+
+    Arguments:
+        length, width: plate size along X and Y (m). thickness: equivalent plate thickness (m;
+            may be traced). material: plate material (its ``E`` may be traced). nx, ny: uniform
+            mesh divisions along X and Y (refined by footprint and point lines).
+    """
+
+    length: float = eqx.field(static=True)
+    width: float = eqx.field(static=True)
+    thickness: float | Float[Array, ""]
+    material: Material
+    nx: int = eqx.field(static=True)
+    ny: int = eqx.field(static=True)
+
+    def __check_init__(self):
+        if not (self.length > 0 and self.width > 0):
+            raise ValueError(f"length and width must be > 0 m, got {self.length}, {self.width}")
+        for name in ("nx", "ny"):
+            n = getattr(self, name)
+            if isinstance(n, bool) or int(n) != n or n < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {n!r}")
 
 
 class TableModel(eqx.Module):
@@ -53,8 +74,8 @@ def table_model(
     carriage_x: Sequence[float],
     footprint: tuple[float, float],
     points: dict[str, tuple[float, float]],
-    nut_xy: tuple[float, float] | None = (0.0, 0.0),
-    nut_half: tuple[float, float] = (NUT_HALF, NUT_HALF),
+    nut_xy: tuple[float, float] | None = None,
+    nut_half: tuple[float, float] | None = None,
     ribs: Sequence[Rib] = (),
     gravity: float = 9.81,
 ) -> TableModel:
@@ -67,7 +88,8 @@ def table_model(
         footprint: carriage footprint (X, Y) bolted to the underside (m).
         points: control points ``{name: (x, y)}`` on the top surface (m).
         nut_xy: the screw nut's position (m), or ``None`` for no nut patch.
-        nut_half: half-sizes of the nut flange (m). ribs: ribs under the plate.
+        nut_half: half-sizes of the nut flange (m; needed with ``nut_xy``). ribs: ribs under
+            the plate.
         gravity: (m/s²).
 
     Returns:
@@ -81,6 +103,8 @@ def table_model(
         for j, cx in enumerate(carriage_x)
     ]
     if nut_xy is not None:
+        if nut_half is None:
+            raise ValueError("nut_half (half-sizes of the nut flange, m) is needed with nut_xy")
         patches.append(
             RigidPatch(x=nut_xy[0], y=nut_xy[1], half_x=nut_half[0], half_y=nut_half[1], name="nut")
         )
@@ -92,46 +116,10 @@ def table_model(
     mesh = table_mesh(length, width, nx, ny, lines_x=lx, lines_y=ly, ribs=ribs)
     plate = PlateSection(thickness=thickness, material=material)
     return TableModel(
-        mesh=mesh, plate=plate, patches=tuple(patches), points=xy, point_names=names,
+        mesh=mesh,
+        plate=plate,
+        patches=tuple(patches),
+        points=xy,
+        point_names=names,
         gravity=float(gravity),
-    )
-
-
-def majda2012_table(
-    nx: int | None = None,
-    ny: int | None = None,
-    *,
-    nut: bool = True,
-    ribs: Sequence[Rib] = (),
-    thickness: float | None = None,
-    material: Material | None = None,
-    points: dict[str, tuple[float, float]] | None = None,
-) -> TableModel:
-    """The ``majda2012`` table (see module docstring; :func:`table_model` with the preset).
-
-    Args:
-        nx, ny: uniform divisions along X and Y (default 20 × 10, 50 mm elements), >= 1.
-        nut: add the screw-nut patch (last interface, 6 DOF) under the table centre.
-        ribs: optional ribs under the plate.
-        thickness: plate thickness in m (default 0.05, the preset's equivalent thickness).
-        material: plate material (default: the preset's cast iron, E 110 GPa, ν 0.26).
-        points: control points ``{name: (x, y)}`` on the top surface (m); default P1..P5.
-    """
-    T, L = MAJDA2012_TABLE, MAJDA2012_LAYOUT
-    if material is None:
-        material = Material(E=T["E"], nu=T["nu"], rho=T["rho"], name="cast iron")
-    return table_model(
-        length=T["length"],
-        width=T["width"],
-        thickness=T["thickness"] if thickness is None else thickness,
-        material=material,
-        nx=T["nx"] if nx is None else nx,
-        ny=T["ny"] if ny is None else ny,
-        rail_y=L["rail_y"],
-        carriage_x=L["carriage_x"],
-        footprint=L["carriage_footprint"],
-        points=MAJDA2012_POINTS if points is None else points,
-        nut_xy=L["nut_xy"] if nut else None,
-        ribs=ribs,
-        gravity=L["gravity"],
     )

@@ -2,6 +2,8 @@
 elements), and one carriage's equilibrium and static characteristic."""
 
 from .carriage import Carriage as Carriage
+from .carriage import CarriageSpec as CarriageSpec
+from .carriage import carriage_from_spec as carriage_from_spec
 from .carriage import element_offsets as element_offsets
 from .carriage import four_row_carriage as four_row_carriage
 from .carriage import majda2012_carriage as majda2012_carriage

@@ -24,7 +24,7 @@ import numpy as np
 
 from .._core.checks import concrete
 from .._core.types import Array, Float
-from ..contact.laws import AbstractContactLaw, HertzBall, PalmgrenRoller
+from ..contact.laws import AbstractContactLaw, HertzBall, PalmgrenRoller, RivinBall
 from ..contact.smoothing import element_energy, element_force, element_stiffness
 
 
@@ -261,50 +261,91 @@ def four_row_carriage(
     return Carriage(law, row_yz, row_normals, xi, per_element, eps_ratio)
 
 
-def majda2012_carriage(law: str = "hertz") -> Carriage:
-    """The paper's size-25 ball runner block (Majda 2012, §3).
+class CarriageSpec(eqx.Module):
+    """A four-row runner block, SI units: what :func:`carriage_from_spec` builds a
+    :class:`Carriage` from (the ``[carriage]`` section of a machine file; presets in
+    :mod:`diffguide.presets`).
 
-    From the paper: C = 22.8 kN, preload 8 % C, balls d = 3 mm in grooves D = 1.01 d,
-    E = 210 GPa, ν = 0.3, four rows at 45°. Chosen here (the paper gives no element count or row
-    positions): 12 balls per row at a 4 mm pitch (3 mm ball + 1 mm spacer; a 48 mm loaded zone,
-    inside a size-25 block's ~60 mm steel body); upper rows at y = ±9 mm, z = −15 mm and lower rows
-    at y = ±11.5 mm, z = −23 mm below the carriage's top face (a size-25 rail is 23 mm wide; the
-    block is 36 mm tall over a 23 mm rail, so the rail top is 13 mm below the face), O arrangement.
+    Arguments:
+        law: ``"hertz"`` (balls, exact Hertz), ``"rivin"`` (balls, the paper's eq. 1) or
+            ``"roller"`` (Palmgren line contact).
+        ball_diameter: ball diameter d (m; balls). groove_conformity: groove diameter / ball
+            diameter, D/d > 1 (balls). roller_length: effective roller length (m; rollers).
+        E: Young's modulus of elements and grooves (Pa). nu: their Poisson ratio.
+        elements_per_row: rolling elements per row. pitch: element pitch (m).
+        contact_angle_deg: load line angle from the vertical (degrees). arrangement: ``"O"`` or
+            ``"X"`` (:func:`row_layout`).
+        upper_row_yz, lower_row_yz: (|y|, z) of the upper and lower rows below the carriage's top
+            face (m).
+        capacity: dynamic load capacity C (N). preload_fraction: preload as a fraction of C (may
+            be traced). smoothing_fraction: smoothing length ε / preload approach.
+    """
+
+    law: str = eqx.field(static=True)
+    ball_diameter: float
+    groove_conformity: float
+    roller_length: float
+    E: float
+    nu: float
+    elements_per_row: int = eqx.field(static=True)
+    pitch: float = eqx.field(static=True)
+    contact_angle_deg: float = eqx.field(static=True)
+    arrangement: str = eqx.field(static=True)
+    upper_row_yz: tuple[float, float] = eqx.field(static=True)
+    lower_row_yz: tuple[float, float] = eqx.field(static=True)
+    capacity: float | Float[Array, ""]
+    preload_fraction: float | Float[Array, ""]
+    smoothing_fraction: float = 0.02
+
+    def __check_init__(self):
+        if self.law not in LAWS:
+            raise ValueError(f"law must be one of {LAWS}, got {self.law!r}")
+
+    def contact_law(self) -> AbstractContactLaw:
+        """The element contact law (SI)."""
+        d = self.ball_diameter
+        if self.law == "hertz":
+            return HertzBall(d, self.groove_conformity * d, self.E, self.nu)
+        if self.law == "rivin":
+            return RivinBall(d, self.groove_conformity * d, self.E, self.nu)
+        return PalmgrenRoller(self.roller_length)
+
+
+#: The contact laws a :class:`CarriageSpec` can name.
+LAWS = ("hertz", "rivin", "roller")
+
+
+def carriage_from_spec(spec: CarriageSpec) -> Carriage:
+    """The :class:`Carriage` of a runner-block specification (:func:`four_row_carriage`)."""
+    return four_row_carriage(
+        spec.contact_law(),
+        n=spec.elements_per_row,
+        pitch=spec.pitch,
+        capacity=spec.capacity,
+        preload_fraction=spec.preload_fraction,
+        upper_yz=spec.upper_row_yz,
+        lower_yz=spec.lower_row_yz,
+        contact_angle_deg=spec.contact_angle_deg,
+        arrangement=spec.arrangement,
+        eps_ratio=spec.smoothing_fraction,
+    )
+
+
+def majda2012_carriage(law: str = "hertz") -> Carriage:
+    """The paper's size-25 ball runner block (:func:`diffguide.presets.ball_block_25`).
 
     Arguments:
         law: ``"hertz"`` (full elliptic Hertz theory) or ``"rivin"`` (the paper's eq. 1).
     """
-    from ..contact.laws import RivinBall
+    from ..presets import ball_block_25
 
-    laws = {"hertz": HertzBall(3e-3, 3.03e-3, 210e9, 0.3), "rivin": RivinBall(3e-3, 3.03e-3)}
-    if law not in laws:
-        raise ValueError(f"law must be one of {sorted(laws)}, got {law!r}")
-    return four_row_carriage(
-        laws[law],
-        n=12,
-        pitch=4e-3,
-        capacity=22.8e3,
-        preload_fraction=0.08,
-        upper_yz=(9e-3, -15e-3),
-        lower_yz=(11.5e-3, -23e-3),
-    )
+    if law not in ("hertz", "rivin"):
+        raise ValueError(f"law must be one of ['hertz', 'rivin'], got {law!r}")
+    return carriage_from_spec(ball_block_25(law))
 
 
 def roller25_carriage() -> Carriage:
-    """A catalogue-typical size-25 roller runner block (four rows of rollers at 45°).
+    """A catalogue-typical size-25 roller block (:func:`diffguide.presets.roller_block_25`)."""
+    from ..presets import roller_block_25
 
-    Values typical of size-25 roller blocks in the Bosch Rexroth and THK (SRG 25) catalogues:
-    dynamic capacity C ≈ 48.9 kN, preload class 8 % C, cylindrical rollers of 5 mm diameter with
-    an effective length of 6 mm, 16 rollers per row at a 5.5 mm pitch (an 88 mm loaded zone in a
-    ~100 mm steel body); rows placed as in :func:`majda2012_carriage` (same rail size). These are
-    representative, not one product's data sheet.
-    """
-    return four_row_carriage(
-        PalmgrenRoller(6e-3),
-        n=16,
-        pitch=5.5e-3,
-        capacity=48.9e3,
-        preload_fraction=0.08,
-        upper_yz=(9e-3, -15e-3),
-        lower_yz=(11.5e-3, -23e-3),
-    )
+    return carriage_from_spec(roller_block_25())

@@ -142,6 +142,23 @@ def bspline_matrix(s, start: float, spacing: float, n_coeffs: int) -> np.ndarray
     return B
 
 
+def knot_grid(start: float, end: float, spacing: float) -> tuple[float, float, int]:
+    """The uniform cubic B-spline knots that cover ``[start, end]`` (m) at ``spacing`` (m):
+    ``(start, spacing, n_coeffs)``, with ``n_coeffs − 3 = ⌈(end − start)/spacing⌉ ≥ 1`` knot
+    intervals (the last knot at or just beyond ``end``)."""
+    if not spacing > 0:
+        raise ValueError(f"spacing (knot spacing) must be > 0 m, got {spacing!r}")
+    n_seg = max(int(np.ceil((end - start) / spacing - 1e-9)), 1)
+    return float(start), float(spacing), n_seg + 3
+
+
+def knot_centres(start: float, spacing: float, n_coeffs: int) -> np.ndarray:
+    """Rail coordinate ``s`` (m) at the centre of each coefficient's basis function,
+    ``s₀ + (k − 1)h`` (where a cubic B-spline reproducing a line has coefficient ``k`` equal to
+    the line)."""
+    return start + (np.arange(n_coeffs) - 1.0) * spacing
+
+
 #: Largest number of spline segments :meth:`SplineRail.fit` builds (bounded memory).
 MAX_SEGMENTS = 5000
 
@@ -228,8 +245,7 @@ class SplineRail(AbstractRailProfile):
                 f"{(hi - lo) / MAX_SEGMENTS:.3g} m "
                 "are not supported"
             )
-        n_seg = max(int(np.ceil((hi - lo) / spacing - 1e-9)), 1)
-        n = n_seg + 3
+        lo, spacing, n = knot_grid(lo, hi, spacing)
         B = bspline_matrix(s, lo, spacing, n)
         D = np.diff(np.eye(n), 2, axis=0)
         lam = smoothing * np.trace(B.T @ B) / max(np.trace(D.T @ D), 1.0)

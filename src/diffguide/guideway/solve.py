@@ -84,6 +84,7 @@ def solve_carriage(
     tol: float = 1e-9,
     max_steps: int = 100,
     free: tuple[int, ...] = ALL_FREE,
+    throw: bool = False,
 ) -> CarriageSolution:
     """Equilibrium pose of a rigid carriage.
 
@@ -101,6 +102,9 @@ def solve_carriage(
             the rail (the drive does), and ``load[0]`` is ignored. A carriage with one opposed
             pair of rows lifted off has a zero-stiffness roll mode about the crossing of the
             remaining load lines; hold the rotations (``free=TRANSLATION_ONLY``) to load it alone.
+        throw: raise when the solve fails (``eqx.error_if``, works under ``jit``) instead of
+            only reporting it in ``result`` (leave off under ``vmap``: one failure would fail
+            the batch).
 
     Returns:
         :class:`CarriageSolution`.
@@ -130,7 +134,13 @@ def solve_carriage(
         else S.T @ jnp.asarray(initial_pose) / POSE_SCALE
     )
     y, result, steps = solve_equilibrium(
-        _potential, _grad_hess, y0, (carriage, load, rail, S), tol=tol, max_steps=max_steps
+        _potential,
+        _grad_hess,
+        y0,
+        (carriage, load, rail, S),
+        tol=tol,
+        max_steps=max_steps,
+        throw=throw,
     )
     pose = S @ y * POSE_SCALE
     a = carriage.approaches(pose, rail)

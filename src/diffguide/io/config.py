@@ -4,10 +4,12 @@ A configuration is a nested mapping ``{section: {key: value}}``. :data:`SCHEMA` 
 with its default (the ``majda2012`` preset), its kind and its allowed range; a file only needs the
 keys it changes. :func:`load_config` reads and validates a file — every error names the file, the
 key and the allowed range, in one line — and :func:`dump_config` writes one (``diffguide config
---preset majda2012 > machine.toml``). :func:`diffguide.build_machine` turns a configuration
-into a :class:`~diffguide.machine.Machine`.
+--preset majda2012 > machine.toml``). :func:`spec_from_config` turns a configuration into
+the typed, SI :class:`~diffguide.machine.spec.MachineSpec` that :func:`diffguide.build_machine`
+builds from (:func:`config_from_spec` goes back); the defaults are
+:func:`diffguide.presets.majda2012`, the one definition of the preset.
 
-Units: mm, µm, GPa, N, kg/m³, degrees, as the key names say; converted to SI by the builder.
+Units: mm, µm, GPa, N, kg/m³, degrees, as the key names say; :data:`KEYS` converts them to SI.
 """
 
 import math
@@ -15,52 +17,50 @@ import os
 import tomllib
 from pathlib import Path
 
-from ..presets import MAJDA2012_LAYOUT, MAJDA2012_POINTS, MAJDA2012_TABLE
+from .. import presets
 
-_INF = math.inf
-
-#: ``{section: {key: (default, kind, low, high, help)}}``; kind: "float", "int", "str:a|b",
-#: "pair" (two floats), "list" (floats). Ranges are inclusive unless noted in the help text.
-SCHEMA: dict[str, dict[str, tuple]] = {
+#: ``{section: {key: (spec path, SI -> user scale, kind, low, high, help)}}``: every key of a
+#: machine file, the field of :class:`~diffguide.machine.spec.MachineSpec` it sets (``None``:
+#: a key of the file only) and the factor from SI to the key's unit (``None``: not a number).
+#: kind: "float", "int", "str:a|b", "pair" (two floats). Ranges are inclusive.
+KEYS: dict[str, dict[str, tuple]] = {
     "table": {
-        "length_mm": (
-            MAJDA2012_TABLE["length"] * 1e3,
-            "float",
-            50.0,
-            20000.0,
-            "table length along X",
-        ),
-        "width_mm": (MAJDA2012_TABLE["width"] * 1e3, "float", 50.0, 10000.0, "table width along Y"),
+        "length_mm": ("table.length", 1e3, "float", 50.0, 20000.0, "table length along X"),
+        "width_mm": ("table.width", 1e3, "float", 50.0, 10000.0, "table width along Y"),
         "thickness_mm": (
-            MAJDA2012_TABLE["thickness"] * 1e3,
+            "table.thickness",
+            1e3,
             "float",
             1.0,
             2000.0,
             "equivalent plate thickness",
         ),
-        "E_GPa": (MAJDA2012_TABLE["E"] / 1e9, "float", 1.0, 1000.0, "Young's modulus"),
-        "nu": (MAJDA2012_TABLE["nu"], "float", 0.0, 0.49, "Poisson ratio"),
-        "density_kg_m3": (MAJDA2012_TABLE["rho"], "float", 0.0, 30000.0, "density"),
-        "mesh_nx": (MAJDA2012_TABLE["nx"], "int", 1, 200, "elements along X"),
-        "mesh_ny": (MAJDA2012_TABLE["ny"], "int", 1, 200, "elements along Y"),
+        "E_GPa": ("table.material.E", 1e-9, "float", 1.0, 1000.0, "Young's modulus"),
+        "nu": ("table.material.nu", 1.0, "float", 0.0, 0.49, "Poisson ratio"),
+        "density_kg_m3": ("table.material.rho", 1.0, "float", 0.0, 30000.0, "density"),
+        "mesh_nx": ("table.nx", None, "int", 1, 200, "elements along X"),
+        "mesh_ny": ("table.ny", None, "int", 1, 200, "elements along Y"),
     },
     "guideway": {
         "rail_y_mm": (
-            tuple(v * 1e3 for v in MAJDA2012_LAYOUT["rail_y"]),
+            "guideway.rail_y",
+            1e3,
             "pair",
             -5000.0,
             5000.0,
             "Y of rail 1 and rail 2 (rail 1 first)",
         ),
         "carriage_x_mm": (
-            tuple(v * 1e3 for v in MAJDA2012_LAYOUT["carriage_x"]),
+            "guideway.carriage_x",
+            1e3,
             "pair",
             -10000.0,
             10000.0,
             "X of the two carriages on each rail, from the table centre",
         ),
         "carriage_footprint_mm": (
-            tuple(v * 1e3 for v in MAJDA2012_LAYOUT["carriage_footprint"]),
+            "guideway.footprint",
+            1e3,
             "pair",
             5.0,
             1000.0,
@@ -69,89 +69,254 @@ SCHEMA: dict[str, dict[str, tuple]] = {
     },
     "carriage": {
         "law": (
-            "hertz",
+            "carriage.law",
+            None,
             "str:hertz|rivin|roller",
             None,
             None,
             "contact law: hertz (balls, exact), rivin (the paper's eq. 1), roller (Palmgren)",
         ),
-        "ball_diameter_mm": (3.0, "float", 0.5, 50.0, "ball diameter d"),
-        "groove_conformity": (1.01, "float", 1.0001, 1.5, "groove diameter / ball diameter, D/d"),
-        "roller_length_mm": (6.0, "float", 0.5, 100.0, "effective roller length (law = roller)"),
-        "E_GPa": (210.0, "float", 1.0, 1000.0, "Young's modulus of elements and grooves"),
-        "nu": (0.3, "float", 0.0, 0.49, "Poisson ratio of elements and grooves"),
-        "elements_per_row": (12, "int", 1, 200, "rolling elements per row"),
-        "pitch_mm": (4.0, "float", 0.5, 100.0, "element pitch along the row"),
-        "contact_angle_deg": (45.0, "float", 1.0, 89.0, "load line angle from the vertical"),
-        "arrangement": ("O", "str:O|X", None, None, "O (load lines away from the rail) or X"),
+        "ball_diameter_mm": ("carriage.ball_diameter", 1e3, "float", 0.5, 50.0, "ball diameter d"),
+        "groove_conformity": (
+            "carriage.groove_conformity",
+            1.0,
+            "float",
+            1.0001,
+            1.5,
+            "groove diameter / ball diameter, D/d",
+        ),
+        "roller_length_mm": (
+            "carriage.roller_length",
+            1e3,
+            "float",
+            0.5,
+            100.0,
+            "effective roller length (law = roller)",
+        ),
+        "E_GPa": (
+            "carriage.E",
+            1e-9,
+            "float",
+            1.0,
+            1000.0,
+            "Young's modulus of elements and grooves",
+        ),
+        "nu": ("carriage.nu", 1.0, "float", 0.0, 0.49, "Poisson ratio of elements and grooves"),
+        "elements_per_row": (
+            "carriage.elements_per_row",
+            None,
+            "int",
+            1,
+            200,
+            "rolling elements per row",
+        ),
+        "pitch_mm": ("carriage.pitch", 1e3, "float", 0.5, 100.0, "element pitch along the row"),
+        "contact_angle_deg": (
+            "carriage.contact_angle_deg",
+            1.0,
+            "float",
+            1.0,
+            89.0,
+            "load line angle from the vertical",
+        ),
+        "arrangement": (
+            "carriage.arrangement",
+            None,
+            "str:O|X",
+            None,
+            None,
+            "O (load lines away from the rail) or X",
+        ),
         "upper_row_yz_mm": (
-            (9.0, -15.0),
+            "carriage.upper_row_yz",
+            1e3,
             "pair",
             -500.0,
             500.0,
             "|y| and z of the upper rows below the carriage top face",
         ),
         "lower_row_yz_mm": (
-            (11.5, -23.0),
+            "carriage.lower_row_yz",
+            1e3,
             "pair",
             -500.0,
             500.0,
             "|y| and z of the lower rows below the carriage top face",
         ),
-        "capacity_N": (22.8e3, "float", 100.0, 1e7, "dynamic load capacity C"),
-        "preload_fraction": (0.08, "float", 1e-4, 0.5, "preload as a fraction of C"),
-        "smoothing_fraction": (0.02, "float", 1e-4, 0.5, "smoothing length ε / preload approach"),
+        "capacity_N": ("carriage.capacity", 1.0, "float", 100.0, 1e7, "dynamic load capacity C"),
+        "preload_fraction": (
+            "carriage.preload_fraction",
+            1.0,
+            "float",
+            1e-4,
+            0.5,
+            "preload as a fraction of C",
+        ),
+        "smoothing_fraction": (
+            "carriage.smoothing_fraction",
+            1.0,
+            "float",
+            1e-4,
+            0.5,
+            "smoothing length ε / preload approach",
+        ),
     },
     "screw": {
         "core_diameter_mm": (
-            MAJDA2012_LAYOUT["screw_core_diameter"] * 1e3,
+            "screw.core_diameter",
+            1e3,
             "float",
             1.0,
             500.0,
             "screw core diameter",
         ),
-        "E_GPa": (MAJDA2012_LAYOUT["screw_E"] / 1e9, "float", 1.0, 1000.0, "screw Young's modulus"),
+        "E_GPa": ("screw.E", 1e-9, "float", 1.0, 1000.0, "screw Young's modulus"),
         "free_length_at_ref_mm": (
-            MAJDA2012_LAYOUT["screw_free_length_at_ref"] * 1e3,
+            "screw.free_length_at_ref",
+            1e3,
             "float",
             1.0,
             50000.0,
             "fixed bearing to nut at x = 0; grows with x",
         ),
         "nut_xy_mm": (
-            tuple(v * 1e3 for v in MAJDA2012_LAYOUT["nut_xy"]),
+            "screw.nut_xy",
+            1e3,
             "pair",
             -10000.0,
             10000.0,
             "nut position under the table",
         ),
-        "nut_footprint_mm": ((50.0, 50.0), "pair", 1.0, 1000.0, "nut flange bolted to the table"),
+        "nut_footprint_mm": (
+            "screw.nut_footprint",
+            1e3,
+            "pair",
+            1.0,
+            1000.0,
+            "nut flange bolted to the table",
+        ),
     },
     "machine": {
-        "gravity_m_s2": (MAJDA2012_LAYOUT["gravity"], "float", 0.0, 100.0, "gravity"),
-        "stroke_mm": (700.0, "float", 1.0, 50000.0, "X stroke, symmetric about x = 0"),
+        "gravity_m_s2": ("gravity", 1.0, "float", 0.0, 100.0, "gravity"),
+        "stroke_mm": ("stroke", 1e3, "float", 1.0, 50000.0, "X stroke, symmetric about x = 0"),
     },
 }
 
-#: Control points: a section of ``name = [x_mm, y_mm]`` on the table top (default P1..P5).
-DEFAULT_POINTS = {k: (v[0] * 1e3, v[1] * 1e3) for k, v in MAJDA2012_POINTS.items()}
-
-
-#: Ribs under the plate: an array of tables ``[[ribs]]`` with these keys (default: none).
-RIB_SCHEMA: dict[str, tuple] = {
-    "axis": ("x", "str:x|y", None, None, "x: along the rails, y: across"),
-    "position_mm": (0.0, "float", -1e5, 1e5, "y of an x-rib, x of a y-rib"),
-    "width_mm": (20.0, "float", 1.0, 1000.0, "rib width"),
-    "depth_mm": (60.0, "float", 1.0, 2000.0, "rib depth below the plate"),
+#: Ribs under the plate: an array of tables ``[[ribs]]`` with these keys (default: none); same
+#: layout as :data:`KEYS`, paths into :class:`~diffguide.fe.mesh.Rib`.
+RIB_KEYS: dict[str, tuple] = {
+    "axis": ("axis", None, "str:x|y", None, None, "x: along the rails, y: across"),
+    "position_mm": ("position", 1e3, "float", -1e5, 1e5, "y of an x-rib, x of a y-rib"),
+    "width_mm": ("width", 1e3, "float", 1.0, 1000.0, "rib width"),
+    "depth_mm": ("depth", 1e3, "float", 1.0, 2000.0, "rib depth below the plate"),
 }
+#: The default rib of a ``[[ribs]]`` table, user units.
+_RIB_DEFAULTS = {"axis": "x", "position_mm": 0.0, "width_mm": 20.0, "depth_mm": 60.0}
+
+
+def _get(obj, path: str):
+    for name in path.split("."):
+        obj = getattr(obj, name)
+    return obj
+
+
+def _user(value, scale):
+    """SI -> the key's unit, rounded to 12 significant digits (170.0 mm, not 170.00000000000003)."""
+    if scale is None:
+        return value
+    if isinstance(value, tuple):
+        return tuple(_user(v, scale) for v in value)
+    return float(f"{float(value) * scale:.12g}")
+
+
+def _si(value, scale):
+    if scale is None:
+        return value
+    if isinstance(value, (tuple, list)):
+        return tuple(_si(v, scale) for v in value)
+    return value / scale
+
+
+def config_from_spec(spec) -> dict:
+    """A :class:`~diffguide.machine.spec.MachineSpec` as a configuration (user units)."""
+    cfg = {
+        sec: {key: _user(_get(spec, k[0]), k[1]) for key, k in keys.items()}
+        for sec, keys in KEYS.items()
+    }
+    cfg["points"] = {name: _user(xy, 1e3) for name, xy in spec.points}
+    cfg["ribs"] = [
+        {key: _user(_get(rib, k[0]), k[1]) for key, k in RIB_KEYS.items()} for rib in spec.ribs
+    ]
+    return cfg
+
+
+def spec_from_config(cfg: dict):
+    """The :class:`~diffguide.machine.spec.MachineSpec` (SI) of a validated configuration."""
+    from ..fe.materials import Material
+    from ..fe.mesh import Rib
+    from ..fe.table import TableSpec
+    from ..guideway.carriage import CarriageSpec
+    from ..machine.spec import GuidewaySpec, MachineSpec, ScrewSpec
+
+    si = {k[0]: _si(cfg[sec][key], k[1]) for sec, keys in KEYS.items() for key, k in keys.items()}
+
+    def fields(prefix):
+        n = len(prefix) + 1
+        return {p[n:]: v for p, v in si.items() if p.startswith(prefix + ".") and "." not in p[n:]}
+
+    table = TableSpec(
+        **fields("table"), material=Material(**fields("table.material"), name="table")
+    )
+    ribs = [
+        Rib(**{RIB_KEYS[key][0]: _si(v, RIB_KEYS[key][1]) for key, v in rib.items()})
+        for rib in cfg.get("ribs", [])
+    ]
+    return MachineSpec(
+        table=table,
+        guideway=GuidewaySpec(**fields("guideway")),
+        carriage=CarriageSpec(**fields("carriage")),
+        screw=ScrewSpec(**fields("screw")),
+        points={name: _si(xy, 1e3) for name, xy in cfg["points"].items()},
+        ribs=ribs,
+        gravity=si["gravity"],
+        stroke=si["stroke"],
+    )
+
+
+def _defaults() -> dict:
+    return config_from_spec(presets.majda2012())
+
+
+_DEFAULTS = _defaults()
+#: ``{section: {key: (default, kind, low, high, help)}}``: every key with its default (the
+#: ``majda2012`` preset, :func:`diffguide.presets.majda2012`), kind and allowed range.
+SCHEMA: dict[str, dict[str, tuple]] = {
+    sec: {key: (_DEFAULTS[sec][key], *k[2:]) for key, k in keys.items()}
+    for sec, keys in KEYS.items()
+}
+RIB_SCHEMA: dict[str, tuple] = {key: (_RIB_DEFAULTS[key], *k[2:]) for key, k in RIB_KEYS.items()}
 
 
 def default_config() -> dict:
     """The ``majda2012`` preset as a configuration (user units)."""
-    cfg = {sec: {k: spec[0] for k, spec in keys.items()} for sec, keys in SCHEMA.items()}
-    cfg["points"] = dict(DEFAULT_POINTS)
-    cfg["ribs"] = []
-    return cfg
+    return _defaults()
+
+
+def carriage_from_config(cfg: dict, preload_fraction=None):
+    """The runner block of a configuration (:func:`~diffguide.guideway.carriage_from_spec`)."""
+    from ..guideway.carriage import carriage_from_spec
+    from ..machine.build import with_overrides
+
+    spec = with_overrides(spec_from_config(cfg), preload_fraction=preload_fraction)
+    return carriage_from_spec(spec.carriage)
+
+
+def table_from_config(cfg: dict, *, thickness=None, E=None, nx=None, ny=None, nut=True):
+    """The :class:`~diffguide.fe.table.TableModel` of a configuration (SI overrides allowed)."""
+    from ..machine.build import table_from_spec, with_overrides
+
+    spec = with_overrides(spec_from_config(cfg), thickness=thickness, E=E, nx=nx, ny=ny)
+    return table_from_spec(spec, nut=nut)
 
 
 def _number(value, where, what):

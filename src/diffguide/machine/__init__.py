@@ -2,6 +2,8 @@
 every table position; joint kinematic errors at points on the table; the ``majda2012`` machine."""
 
 from .build import build_machine as build_machine
+from .build import table_from_spec as table_from_spec
+from .build import with_overrides as with_overrides
 from .equilibrium import DOF_SCALE as DOF_SCALE
 from .equilibrium import Machine as Machine
 from .equilibrium import MachineState as MachineState
@@ -14,4 +16,8 @@ from .kinematics import JointErrors as JointErrors
 from .kinematics import error_field as error_field
 from .kinematics import joint_errors as joint_errors
 from .majda2012 import majda2012_machine as majda2012_machine
+from .majda2012 import majda2012_table as majda2012_table
 from .majda2012 import paper_variant as paper_variant
+from .spec import GuidewaySpec as GuidewaySpec
+from .spec import MachineSpec as MachineSpec
+from .spec import ScrewSpec as ScrewSpec

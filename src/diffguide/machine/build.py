@@ -1,84 +1,93 @@
-"""From a machine configuration (:mod:`diffguide.io.config`, user units) to a
-:class:`~diffguide.machine.Machine` (SI): the table condensed onto its carriages and nut, the
-runner block, the screw.
+"""From a typed machine specification (:class:`~diffguide.machine.spec.MachineSpec`, SI) to a
+:class:`~diffguide.machine.equilibrium.Machine`: the table condensed onto its carriages and nut,
+the runner block, the screw.
 
-Parameters that studies differentiate (plate thickness, table E, preload fraction, carriage
-spacing) can be passed as (traced) SI overrides; everything else comes from the configuration.
+Parameters that studies differentiate are fields of the specification that may hold traced
+arrays (``spec.table.thickness``, ``spec.table.material.E``, ``spec.carriage.preload_fraction``,
+``spec.guideway.carriage_spacing``); replace them with ``eqx.tree_at``.
 
 Carriage spacing. The carriage X positions enter twice: where the rails are sampled
 (``Machine.carriage_x``) and where the carriages are bolted to the table (the footprint patches
-and the mesh lines at their edges). A ``carriage_spacing`` override keeps the configuration's
-mesh topology and moves the grid lines of each carriage footprint (its edges and centre line)
-with the carriage, together with the patch reference point; the other grid lines stay.
-The moved mesh is then exactly the mesh a rebuild with the new ``carriage_x_mm`` gives (as long
-as no footprint line passes another grid line), so the derivative w.r.t. the spacing is the
-derivative of the rebuilt model.
+and the mesh lines at their edges). A ``carriage_spacing`` keeps the specification's mesh
+topology and moves the grid lines of each carriage footprint (its edges and centre line) with the
+carriage, together with the patch reference point; the other grid lines stay. The moved mesh is
+then exactly the mesh a rebuild with the new ``carriage_x`` gives (as long as no footprint line
+passes another grid line), so the derivative w.r.t. the spacing is the derivative of the rebuilt
+model.
 """
+
+import dataclasses
+import warnings
+from collections.abc import Mapping
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ..contact.laws import HertzBall, PalmgrenRoller, RivinBall
-from ..fe.materials import Material
-from ..fe.mesh import Rib
-from ..fe.table import table_model
-from ..guideway.carriage import four_row_carriage
-from ..io.config import default_config
+from ..fe.table import TableModel, table_model
+from ..guideway.carriage import carriage_from_spec
 from .equilibrium import Machine
+from .spec import MachineSpec
 
 
-def carriage_from_config(cfg: dict, preload_fraction=None):
-    """The runner block of a configuration (see ``[carriage]`` in :data:`config.SCHEMA`)."""
-    c = cfg["carriage"]
-    d = c["ball_diameter_mm"] * 1e-3
-    E, nu = c["E_GPa"] * 1e9, c["nu"]
-    if c["law"] == "hertz":
-        law = HertzBall(d, c["groove_conformity"] * d, E, nu)
-    elif c["law"] == "rivin":
-        law = RivinBall(d, c["groove_conformity"] * d, E, nu)
-    else:
-        law = PalmgrenRoller(c["roller_length_mm"] * 1e-3)
-    return four_row_carriage(
-        law,
-        n=c["elements_per_row"],
-        pitch=c["pitch_mm"] * 1e-3,
-        capacity=c["capacity_N"],
-        preload_fraction=c["preload_fraction"] if preload_fraction is None else preload_fraction,
-        upper_yz=tuple(v * 1e-3 for v in c["upper_row_yz_mm"]),
-        lower_yz=tuple(v * 1e-3 for v in c["lower_row_yz_mm"]),
-        contact_angle_deg=c["contact_angle_deg"],
-        arrangement=c["arrangement"],
-        eps_ratio=c["smoothing_fraction"],
-    )
-
-
-def table_from_config(cfg: dict, *, thickness=None, E=None, nx=None, ny=None, nut=True):
-    """The :class:`~diffguide.fe.table.TableModel` of a configuration (SI overrides allowed)."""
-    t, g, s = cfg["table"], cfg["guideway"], cfg["screw"]
-    material = Material(
-        E=t["E_GPa"] * 1e9 if E is None else E, nu=t["nu"], rho=t["density_kg_m3"], name="table"
-    )
+def table_from_spec(spec: MachineSpec, *, nut: bool = True) -> TableModel:
+    """The :class:`~diffguide.fe.table.TableModel` of a machine: its plate on the carriage
+    footprints (and the nut's flange with ``nut``), with its control points and ribs."""
+    t, g, s = spec.table, spec.guideway, spec.screw
     return table_model(
-        length=t["length_mm"] * 1e-3,
-        width=t["width_mm"] * 1e-3,
-        thickness=t["thickness_mm"] * 1e-3 if thickness is None else thickness,
-        material=material,
-        nx=t["mesh_nx"] if nx is None else nx,
-        ny=t["mesh_ny"] if ny is None else ny,
-        rail_y=[v * 1e-3 for v in g["rail_y_mm"]],
-        carriage_x=[v * 1e-3 for v in g["carriage_x_mm"]],
-        footprint=tuple(v * 1e-3 for v in g["carriage_footprint_mm"]),
-        points={k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()},
-        nut_xy=tuple(v * 1e-3 for v in s["nut_xy_mm"]) if nut else None,
-        nut_half=tuple(0.5e-3 * v for v in s["nut_footprint_mm"]),
-        ribs=[
-            Rib(axis=r["axis"], position=r["position_mm"] * 1e-3, width=r["width_mm"] * 1e-3,
-                depth=r["depth_mm"] * 1e-3)
-            for r in cfg.get("ribs", [])
-        ],
-        gravity=cfg["machine"]["gravity_m_s2"],
+        length=t.length,
+        width=t.width,
+        thickness=t.thickness,
+        material=t.material,
+        nx=t.nx,
+        ny=t.ny,
+        rail_y=g.rail_y,
+        carriage_x=g.carriage_x,
+        footprint=g.footprint,
+        points=spec.point_dict,
+        nut_xy=s.nut_xy if nut else None,
+        nut_half=(0.5 * s.nut_footprint[0], 0.5 * s.nut_footprint[1]),
+        ribs=spec.ribs,
+        gravity=spec.gravity,
     )
+
+
+def with_overrides(
+    spec: MachineSpec,
+    *,
+    thickness=None,
+    E=None,
+    preload_fraction=None,
+    carriage_spacing=None,
+    nx: int | None = None,
+    ny: int | None = None,
+    points: dict[str, tuple[float, float]] | None = None,
+) -> MachineSpec:
+    """``spec`` with the given fields replaced (``None``: kept); SI units. The array fields
+    (thickness, E, preload fraction, carriage spacing) may be traced."""
+    if thickness is not None:
+        spec = eqx.tree_at(lambda m: m.table.thickness, spec, thickness)
+    if E is not None:
+        spec = eqx.tree_at(lambda m: m.table.material.E, spec, E)
+    if preload_fraction is not None:
+        spec = eqx.tree_at(lambda m: m.carriage.preload_fraction, spec, preload_fraction)
+    if carriage_spacing is not None:
+        spec = eqx.tree_at(
+            lambda m: m.guideway.carriage_spacing,
+            spec,
+            carriage_spacing,
+            is_leaf=lambda x: x is None,
+        )
+    if nx is not None or ny is not None:
+        table = dataclasses.replace(
+            spec.table,
+            nx=spec.table.nx if nx is None else nx,
+            ny=spec.table.ny if ny is None else ny,
+        )
+        spec = eqx.tree_at(lambda m: m.table, spec, table)
+    if points is not None:
+        spec = dataclasses.replace(spec, points=points)
+    return spec
 
 
 def _moved_carriages(model, carriage_x0, spacing):
@@ -107,7 +116,7 @@ def _moved_carriages(model, carriage_x0, spacing):
         new_xs,
         jnp.any(jnp.diff(new_xs) <= 0),
         "carriage_spacing moves a carriage footprint across another grid line of the mesh; "
-        "change guideway.carriage_x_mm in the configuration instead (or refine less)",
+        "change guideway.carriage_x instead (or refine less)",
     )
     ny = len(mesh.ys)
     nodes = jnp.asarray(mesh.nodes, dtype=float).at[:, 0].set(jnp.repeat(new_xs, ny))
@@ -120,7 +129,7 @@ def _moved_carriages(model, carriage_x0, spacing):
 
 
 def build_machine(
-    cfg: dict | None = None,
+    spec: MachineSpec | None = None,
     *,
     thickness=None,
     E=None,
@@ -130,46 +139,78 @@ def build_machine(
     ny: int | None = None,
     points: dict[str, tuple[float, float]] | None = None,
 ) -> Machine:
-    """Build (and condense) the machine of a configuration; default: ``majda2012``.
+    """Build (and condense) the machine of a specification; default: ``majda2012``.
 
     Arguments:
-        cfg: a validated configuration (:func:`diffguide.io.config.load_config`); default preset.
-        thickness: plate thickness override (m; may be traced for gradients).
-        E: table Young's modulus override (Pa; may be traced).
-        preload_fraction: preload override, fraction of C (may be traced).
-        carriage_spacing: distance between the two carriages on each rail (m; may be traced),
-            overriding ``guideway.carriage_x_mm`` about its centre; the mesh keeps the
-            configuration's topology with the footprint lines moved (module docstring), valid
-            while no footprint line passes another grid line (checked; an error otherwise).
-        nx, ny: mesh divisions override.
-        points: control points override ``{name: (x, y)}`` in m.
+        spec: a :class:`~diffguide.machine.spec.MachineSpec` (default
+            :func:`diffguide.presets.majda2012`). A configuration dictionary (diffguide 0.1,
+            user units) is still accepted, converted by :func:`diffguide.io.config.spec_from_config`
+            (deprecated).
+        thickness, E, preload_fraction, carriage_spacing, nx, ny, points: shorthands for
+            replacing those fields of ``spec`` (:func:`with_overrides`; SI, may be traced).
+            ``carriage_spacing`` keeps the mesh topology with the footprint lines moved (module
+            docstring), valid while no footprint line passes another grid line (checked).
     """
-    cfg = default_config() if cfg is None else cfg
-    if points is not None:
-        cfg = {**cfg, "points": {k: (v[0] * 1e3, v[1] * 1e3) for k, v in points.items()}}
-    model = table_from_config(cfg, thickness=thickness, E=E, nx=nx, ny=ny)
-    carriage = carriage_from_config(cfg, preload_fraction)
-    rail_y = cfg["guideway"]["rail_y_mm"]
+    if spec is None:
+        from ..presets import majda2012
+
+        spec = majda2012()
+    elif isinstance(spec, Mapping):
+        from ..io.config import spec_from_config  # the 0.1 path: a dict in user units
+
+        warnings.warn(
+            "build_machine(config_dict) is deprecated; pass a MachineSpec "
+            "(diffguide.io.config.spec_from_config(cfg) or diffguide.presets.majda2012())",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        spec = spec_from_config(spec)
+    spec = with_overrides(
+        spec,
+        thickness=thickness,
+        E=E,
+        preload_fraction=preload_fraction,
+        carriage_spacing=carriage_spacing,
+        nx=nx,
+        ny=ny,
+        points=points,
+    )
+    model = table_from_spec(spec)
+    rail_y = spec.guideway.rail_y
     carriage_x, carriage_rail = [], []
     for patch in model.patches[:-1]:  # carriages, then the nut
         carriage_x.append(patch.x)
-        carriage_rail.append(int(np.argmin([abs(patch.y * 1e3 - ry) for ry in rail_y])))
+        carriage_rail.append(int(np.argmin([abs(patch.y - ry) for ry in rail_y])))
     carriage_x = np.asarray(carriage_x)
-    if carriage_spacing is None:
+    spacing = spec.guideway.carriage_spacing
+    if spacing is None:
         table = model.condense()
     else:
-        x0 = [v * 1e-3 for v in cfg["guideway"]["carriage_x_mm"]]
-        nodes, ref_xy, carriage_x = _moved_carriages(model, x0, carriage_spacing)
+        nodes, ref_xy, carriage_x = _moved_carriages(model, spec.guideway.carriage_x, spacing)
         table = model.condense(nodes=nodes, ref_xy=ref_xy)
-    s = cfg["screw"]
-    d = s["core_diameter_mm"] * 1e-3
+    s = spec.screw
     return Machine(
         table=table,
-        carriage=carriage,
+        carriage=carriage_from_spec(spec.carriage),
         carriage_x=carriage_x,
         carriage_rail=tuple(carriage_rail),
         point_names=model.point_names,
         points_xy=np.asarray(model.points),
-        screw_EA=s["E_GPa"] * 1e9 * np.pi * d**2 / 4,
-        screw_length_ref=s["free_length_at_ref_mm"] * 1e-3,
+        screw_EA=s.E * np.pi * s.core_diameter**2 / 4,
+        screw_length_ref=s.free_length_at_ref,
     )
+
+
+def __getattr__(name: str):
+    """``carriage_from_config`` and ``table_from_config`` (diffguide 0.1) live in
+    :mod:`diffguide.io.config` now: a configuration is the io layer's business."""
+    if name in ("carriage_from_config", "table_from_config"):
+        from ..io import config
+
+        warnings.warn(
+            f"diffguide.build.{name} moved to diffguide.io.config.{name}",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return getattr(config, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

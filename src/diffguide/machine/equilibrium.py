@@ -31,6 +31,7 @@ import optimistix as optx
 
 from .._core.newton import solve_equilibrium
 from .._core.precision import require_x64
+from .._core.rigid import rigid_transfer
 from .._core.types import Array, Float, Int
 from ..fe.condense import CondensedTable
 from ..guideway.carriage import Carriage
@@ -42,15 +43,8 @@ DOF_SCALE = 1e-6
 
 def rigid_body_map(ref_points: Float[Array, "p 3"]) -> Float[Array, "6p 6"]:
     """``Φ``: the motion ``(u, θ)`` of each reference point for a rigid motion ``(t, θ)`` of the
-    table at the origin, ``u = t + θ × p``."""
-    blocks = []
-    for p in ref_points:
-        x, y, z = p[0], p[1], p[2]
-        skew_p = jnp.array([[0.0, z, -y], [-z, 0.0, x], [y, -x, 0.0]])  # θ × p = −[p]× θ
-        top = jnp.concatenate([jnp.eye(3), skew_p], axis=1)
-        bottom = jnp.concatenate([jnp.zeros((3, 3)), jnp.eye(3)], axis=1)
-        blocks.append(jnp.concatenate([top, bottom], axis=0))
-    return jnp.concatenate(blocks, axis=0)
+    table at the origin, ``u = t + θ × p`` (:func:`~diffguide._core.rigid.rigid_transfer`)."""
+    return rigid_transfer(jnp.asarray(ref_points)).reshape(-1, 6)
 
 
 class Machine(eqx.Module):
@@ -220,6 +214,7 @@ def equilibrium(
     initial: Float[Array, "n_pos d"] | None = None,
     tol: float = 1e-9,
     max_steps: int = 60,
+    throw: bool = False,
 ) -> MachineState:
     """Equilibrium of the machine at every table position, in one compiled, vmapped call.
 
@@ -231,9 +226,12 @@ def equilibrium(
             ``(n_pos, 30)`` elastic, ``(n_pos, 6)`` rigid); default zero.
         tol: stop when the largest Newton step is below ``tol`` µm / µrad.
         max_steps: Newton step limit.
+        throw: raise (``eqx.error_if``, also under ``jit``) when any position fails, instead
+            of only flagging it in ``result``.
 
     Returns:
-        :class:`MachineState`; positions that did not converge are flagged in ``result``.
+        :class:`MachineState`; positions that did not converge are flagged in ``result``
+        (``optx.RESULTS.nonlinear_max_steps_reached``, or ``nonfinite`` for inf/NaN).
     """
     require_x64("equilibrium")
     if len(rails) != 2:
@@ -254,7 +252,17 @@ def equilibrium(
         return _solve_one(machine, x, rails, Phi, K, f, y0, tol, max_steps)
 
     u, forces, result, steps = jax.vmap(one)(positions, initial)
+    if throw:
+        u = _error_if_failed(u, result, "equilibrium")
     return MachineState(positions, u, forces, result, steps)
+
+
+def _error_if_failed(x, result, what: str):
+    """``x``, raising (``eqx.error_if``) if any entry of the batched ``result`` failed."""
+    failed = result != optx.RESULTS.successful
+    return eqx.error_if(
+        x, failed, f"{what}: the solve did not converge at some positions (see `result`)"
+    )
 
 
 def point_motion(machine: Machine, interface: Float[Array, "... m"]) -> Float[Array, "... p 6"]:

@@ -17,14 +17,24 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from .._core.rigid import transfer
 from .._core.types import Array, Float
 from ..guideway.rails import AbstractRailProfile
-from .equilibrium import Machine, equilibrium, point_motion
+from .equilibrium import Machine, _error_if_failed, equilibrium, point_motion
 
+#: ISO 230-1 names of the six joint errors of the X axis, in the order of the last axis of
+#: :attr:`JointErrors.errors` (SI: m for the first three, rad for the last three; user units in
+#: :mod:`diffguide.io.units`).
 ERROR_NAMES = ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX")
-#: SI → user units: µm for the translations, µrad (µm/m) for the rotations.
-USER_SCALE = np.array([1e6, 1e6, 1e6, 1e6, 1e6, 1e6])
-USER_UNITS = ("um", "um", "um", "urad", "urad", "urad")
+#: What each error is.
+ERROR_MEANINGS = (
+    "positioning",
+    "horizontal straightness",
+    "vertical straightness",
+    "roll",
+    "pitch",
+    "yaw",
+)
 
 
 class JointErrors(eqx.Module):
@@ -54,8 +64,11 @@ class JointErrors(eqx.Module):
         return self.result == optx.RESULTS.successful
 
     def user_units(self) -> np.ndarray:
-        """``errors`` in µm and µrad, as a NumPy array ``(n_pos, n_points, 6)``."""
-        return np.asarray(self.errors) * USER_SCALE
+        """``errors`` in µm and µrad, as a NumPy array ``(n_pos, n_points, 6)``
+        (:func:`diffguide.io.units.to_user`)."""
+        from ..io.units import to_user  # user units live at the edge
+
+        return to_user(self.errors)
 
     def error(self, name: str, point: str) -> jax.Array:
         """One error curve (SI) by ISO name (``"EBX"``) and point name (``"P1"``)."""
@@ -72,6 +85,8 @@ def joint_errors(
     rails: tuple[AbstractRailProfile, AbstractRailProfile],
     positions: Float[Array, " n_pos"],
     x_ref: float | Float[Array, ""] = 0.0,
+    *,
+    throw: bool = False,
 ) -> JointErrors:
     """Equilibrium at every position and at ``x_ref`` (one vmapped solve), then the errors.
 
@@ -79,6 +94,8 @@ def joint_errors(
         machine: the machine (``machine.with_rigid_table()`` for the rigid-table comparison).
         rails: error profiles of rail 1 and rail 2.
         positions: table positions (m). x_ref: reference position (m).
+        throw: raise (``eqx.error_if``) when any position (or the reference) fails, instead of
+            only reporting it in ``result``.
     """
     positions = jnp.atleast_1d(jnp.asarray(positions, dtype=float))
     x_ref = jnp.asarray(x_ref, dtype=float)
@@ -88,6 +105,8 @@ def joint_errors(
     # a failed reference position invalidates every error: report its code everywhere
     ref_ok = (state.result == optx.RESULTS.successful)[-1]
     result = jax.tree_util.tree_map(lambda v: jnp.where(ref_ok, v[:-1], v[-1]), state.result)
+    if throw:
+        errors = _error_if_failed(errors, result, "joint_errors")
     return JointErrors(
         positions=positions,
         x_ref=x_ref,
@@ -117,8 +136,7 @@ def error_field(machine: Machine, errors: JointErrors, index: int):
     offset = jnp.array([0.0, 0.0, 1.0]) * half_t
 
     def top(u):
-        nm = node_motion(machine, u)
-        return nm.at[:, :3].add(jnp.cross(nm[:, 3:], offset))
+        return transfer(node_motion(machine, u), offset)
 
     field = top(errors.interface[index]) - top(errors.interface_ref)
     return machine.table.nodes[:, :2], field

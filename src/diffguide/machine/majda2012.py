@@ -1,8 +1,7 @@
 r"""The source paper's machine (preset ``majda2012``) and its three rail-error variants.
 
 Values the paper gives and those chosen here are listed with their reasons in
-:mod:`diffguide.presets` (table, layout, points), :func:`diffguide.guideway.majda2012_carriage`
-(the runner block) and :func:`diffguide.fe.table.majda2012_table` (mesh, nut patch).
+:func:`diffguide.presets.majda2012` (one definition each); this module builds from it.
 
 Rail error (Majda 2012, eq. 4): ``i(s) = (Δ/2)(s/1 m + (s/1 m)²)``, ``Δ = 0.05 mm``, on
 
@@ -14,12 +13,20 @@ Rail 1 is the rail at −Y. The rail coordinate ``s`` is measured along each rai
 under the table centre at the reference position (x = 0).
 """
 
+import dataclasses
+from collections.abc import Sequence
+
+import equinox as eqx
+
+from .. import presets
+from ..fe.mesh import Rib
+from ..fe.table import TableModel
 from ..guideway.rails import AbstractRailProfile, PaperPolynomialRail, StraightRail
-from .build import build_machine
+from .build import build_machine, table_from_spec, with_overrides
 from .equilibrium import Machine
 
-#: The paper's stroke: X 700 mm, symmetric about the reference position.
-STROKE = 0.7
+#: The paper's stroke: X 700 mm, symmetric about the reference position (from the preset).
+STROKE = presets.majda2012().stroke
 
 
 def majda2012_machine(
@@ -42,14 +49,10 @@ def majda2012_machine(
         preload_fraction: preload as a fraction of C (default 0.08); may be traced.
         points: control points ``{name: (x, y)}`` on the table top (m), default P1–P5.
     """
-    from ..io.config import default_config
-
     if law not in ("hertz", "rivin"):
         raise ValueError(f"law must be 'hertz' or 'rivin', got {law!r}")
-    cfg = default_config()
-    cfg["carriage"]["law"] = law
     return build_machine(
-        cfg,
+        presets.majda2012(law),
         thickness=thickness,
         E=E,
         preload_fraction=preload_fraction,
@@ -74,3 +77,31 @@ def paper_variant(
     if variant == 3:
         return PaperPolynomialRail(delta, "vertical"), PaperPolynomialRail(delta, "horizontal")
     raise ValueError(f"variant must be 1, 2 or 3, got {variant!r}")
+
+
+def majda2012_table(
+    nx: int | None = None,
+    ny: int | None = None,
+    *,
+    nut: bool = True,
+    ribs: Sequence[Rib] = (),
+    thickness: float | None = None,
+    material=None,
+    points: dict[str, tuple[float, float]] | None = None,
+) -> TableModel:
+    """The ``majda2012`` table, ready to condense (:func:`~diffguide.machine.table_from_spec`).
+
+    Arguments:
+        nx, ny: uniform divisions along X and Y (default 20 × 10, 50 mm elements), >= 1.
+        nut: add the screw-nut patch (last interface, 6 DOF) under the table centre.
+        ribs: optional ribs under the plate.
+        thickness: plate thickness in m (default 0.05, the preset's equivalent thickness).
+        material: plate material (default: the preset's cast iron, E 110 GPa, ν 0.26).
+        points: control points ``{name: (x, y)}`` on the top surface (m); default P1..P5.
+    """
+    spec = with_overrides(presets.majda2012(), thickness=thickness, nx=nx, ny=ny, points=points)
+    if material is not None:
+        spec = eqx.tree_at(lambda m: m.table.material, spec, material)
+    if ribs:
+        spec = dataclasses.replace(spec, ribs=tuple(ribs))
+    return table_from_spec(spec, nut=nut)

@@ -3,15 +3,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-#: (ISO name, unit, meaning) of the six joint kinematic errors, for axis labels.
-ERROR_LABELS = (
-    ("EXX", "µm", "positioning"),
-    ("EYX", "µm", "horizontal straightness"),
-    ("EZX", "µm", "vertical straightness"),
-    ("EAX", "µrad", "roll"),
-    ("EBX", "µrad", "pitch"),
-    ("ECX", "µrad", "yaw"),
-)
+from ..io.units import ERROR_LABELS
 
 
 def plot_joint_errors(positions_mm, errors_user, point_names, title="", compare=None):

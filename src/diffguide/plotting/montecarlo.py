@@ -3,7 +3,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .errors import ERROR_LABELS as _LABELS
+from ..io.units import ERROR_LABELS as _LABELS
 
 
 def plot_monte_carlo(result, title: str = "", quantile: float = 0.95):

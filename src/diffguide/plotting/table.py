@@ -1,12 +1,9 @@
 """Figure of the table mesh and its deflected shape (matplotlib; never imported by the core)."""
 
-import matplotlib
-
-matplotlib.use("Agg", force=False)
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib import cm, colors  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib import cm, colors
+from matplotlib.patches import Rectangle
 
 
 def plot_table(model, node_u, *, scale: float | None = None, title: str = ""):

@@ -19,9 +19,10 @@ compensates by moving by their negatives.
 
 import numpy as np
 
+from .._core.rigid import transfer
+from ..io.units import ERROR_UNITS as _UNITS
+from ..io.units import error_columns
 from ..machine.kinematics import ERROR_NAMES
-
-_UNITS = ("um", "um", "um", "urad", "urad", "urad")
 
 
 def compensation_table(positions_mm, errors_user, point_names, at: str, source: str = "") -> str:
@@ -43,7 +44,7 @@ def compensation_table(positions_mm, errors_user, point_names, at: str, source: 
         "# values are errors (ISO 230-1 signs) relative to the reference position;",
         "# the controller compensates by their negatives. Units: X in mm, EXX EYX EZX in µm,",
         "# EAX (roll) EBX (pitch) ECX (yaw) in µrad (µm/m).",
-        "X_mm " + " ".join(f"{n}_{u}" for n, u in zip(ERROR_NAMES, _UNITS)),
+        "X_mm " + " ".join(error_columns()),
     ]
     rows = [
         f"{x:9.3f} " + " ".join(f"{v + 0.0:10.4f}" for v in errors_user[i, j])
@@ -65,11 +66,7 @@ def non_rigid_part(errors_user, points_xy, at_index: int):
     xy = np.asarray(points_xy)
     arm = np.zeros((xy.shape[0], 3))
     arm[:, :2] = xy - xy[at_index]
-    theta = e[:, at_index, 3:]  # (n_pos, 3) µrad
-    predicted_t = e[:, at_index, None, :3] + np.cross(theta[:, None, :], arm[None, :, :])  # µm
-    predicted = np.concatenate(
-        [predicted_t, np.broadcast_to(theta[:, None, :], predicted_t.shape)], -1
-    )
+    predicted = transfer(e[:, at_index, None, :], arm[None, :, :])  # µm + µrad × m, µrad
     return e - predicted
 
 

@@ -18,7 +18,6 @@ device runs its own Newton loops). Per sample, only summary statistics come back
 
 import dataclasses
 import itertools
-import os
 import time
 from collections.abc import Callable, Sequence
 
@@ -28,8 +27,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.precision import require_x64
+from ..io.units import ERRORS
 from ..machine.equilibrium import Machine
-from ..machine.kinematics import ERROR_NAMES, USER_UNITS, joint_errors
+from ..machine.kinematics import ERROR_NAMES, joint_errors
 from .random_rails import RailBatch, rails_from_coefficients
 
 _EAX = ERROR_NAMES.index("EAX")
@@ -39,9 +39,7 @@ def default_corners(machine: Machine) -> tuple[str, ...]:
     """Control points off both table axes (``x ≠ 0`` and ``y ≠ 0``): the corners."""
     xy = np.asarray(machine.points_xy)
     xy = xy.reshape(-1, *xy.shape[-2:])[0]  # the first machine of a stacked batch
-    return tuple(
-        n for n, (x, y) in zip(machine.point_names, xy) if abs(x) > 1e-9 and abs(y) > 1e-9
-    )
+    return tuple(n for n, (x, y) in zip(machine.point_names, xy) if abs(x) > 1e-9 and abs(y) > 1e-9)
 
 
 def stack_machines(machines: Sequence[Machine]) -> Machine:
@@ -51,8 +49,9 @@ def stack_machines(machines: Sequence[Machine]) -> Machine:
     if len(machines) == 0:
         raise ValueError("machines must not be empty")
     dyn, static = zip(*(eqx.partition(m, eqx.is_array_like) for m in machines))
-    if any(jax.tree_util.tree_structure(s) != jax.tree_util.tree_structure(static[0])
-           for s in static):
+    if any(
+        jax.tree_util.tree_structure(s) != jax.tree_util.tree_structure(static[0]) for s in static
+    ):
         raise ValueError("machines must have the same structure to be stacked")
     stacked = jax.tree_util.tree_map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *dyn)
     return eqx.combine(stacked, static[0])
@@ -102,8 +101,8 @@ class MonteCarloResult:
         ``roll_diff_max_urad``."""
         cols = {"sample": np.arange(self.n_samples), "converged": self.converged.astype(int)}
         for j, p in enumerate(self.point_names):
-            for k, (name, unit) in enumerate(zip(ERROR_NAMES, USER_UNITS)):
-                cols[f"{name}_range_{p}_{unit}"] = self.ranges[:, j, k] * 1e6
+            for k, e in enumerate(ERRORS):
+                cols[f"{e.name}_range_{p}_{e.unit}"] = self.ranges[:, j, k] * e.scale
         for q, (a, b) in enumerate(self.pairs):
             cols[f"roll_diff_{a}_{b}_urad"] = self.roll_difference[:, q] * 1e6
         if self.pairs:
@@ -140,8 +139,20 @@ def _per_sample(machine, vertical, horizontal, positions, x_ref, start, spacing,
 
 
 @eqx.filter_jit
-def _chunk(machine, vertical, horizontal, positions, x_ref, *, start, spacing, pair_idx, keep,
-           machine_batched, mesh):
+def _chunk(
+    machine,
+    vertical,
+    horizontal,
+    positions,
+    x_ref,
+    *,
+    start,
+    spacing,
+    pair_idx,
+    keep,
+    machine_batched,
+    mesh,
+):
     def local(machine, vertical, horizontal, positions, x_ref):
         def one(m, v, h):
             return _per_sample(m, v, h, positions, x_ref, start, spacing, pair_idx, keep)
@@ -183,31 +194,6 @@ def default_chunk_size(devices: Sequence[jax.Device] | None = None) -> int:
     devices = list(jax.devices() if devices is None else devices)
     per = _CHUNK_PER_DEVICE.get(devices[0].platform, _CHUNK_PER_ACCELERATOR)
     return per * len(devices)
-
-
-def split_cpu_into_devices(n: int | None = None) -> bool:
-    """Expose the host's cores as ``n`` JAX CPU devices (default: all cores), so that
-    :func:`batched_sweep` shards over them and runs one Newton stream per core.
-
-    XLA runs the small, batched operations of a sweep mostly on one thread; separate devices run
-    in parallel (measured on 2 cores: 1.4× the throughput of one device, under load). Sets
-    ``--xla_force_host_platform_device_count`` in ``XLA_FLAGS``, which only takes effect before
-    JAX initializes its backends (the first array). Returns whether it could still take effect.
-    Accelerators are unaffected (``jax.devices()`` stays the GPUs).
-    """
-    n = (os.cpu_count() or 1) if n is None else int(n)
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_force_host_platform_device_count" in flags:
-        return False
-    try:
-        from jax._src import xla_bridge
-
-        if xla_bridge.backends_are_initialized():
-            return False
-    except (ImportError, AttributeError):  # private API moved: set the flag and hope
-        pass
-    os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
-    return True
 
 
 def _pad(a: np.ndarray, n: int) -> np.ndarray:
@@ -298,8 +284,14 @@ def batched_sweep(
         machine = eqx.combine(jax.device_put(arrays, devices[0]), rest)
     pos_dev = jnp.asarray(positions)
     xref_dev = jnp.asarray(float(x_ref))
-    kw = dict(start=rails.start, spacing=rails.spacing, pair_idx=pair_idx, keep=keep_errors,
-              machine_batched=machine_batched, mesh=mesh)
+    kw = dict(
+        start=rails.start,
+        spacing=rails.spacing,
+        pair_idx=pair_idx,
+        keep=keep_errors,
+        machine_batched=machine_batched,
+        mesh=mesh,
+    )
 
     def launch(lo):
         hi = min(lo + chunk, n)
@@ -307,8 +299,9 @@ def batched_sweep(
         h = put(_pad(horizontal[lo:hi], chunk))
         m = machine
         if machine_batched:
-            m = eqx.combine(jax.tree_util.tree_map(lambda a: put(_pad(a[lo:hi], chunk)), dyn),
-                            static)
+            m = eqx.combine(
+                jax.tree_util.tree_map(lambda a: put(_pad(a[lo:hi], chunk)), dyn), static
+            )
         return hi, _chunk(m, v, h, pos_dev, xref_dev, **kw)  # asynchronous
 
     parts: list[dict] = []

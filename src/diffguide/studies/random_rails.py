@@ -47,7 +47,7 @@ import equinox as eqx
 import numpy as np
 
 from .._core.types import Array, Float
-from ..guideway.rails import SplineRail, bspline_matrix
+from ..guideway.rails import SplineRail, bspline_matrix, knot_centres, knot_grid
 
 _KERNELS = ("squared_exponential", "matern52")
 
@@ -84,9 +84,7 @@ class GaussianRailModel(eqx.Module):
         if not (math.isfinite(self.rms) and self.rms >= 0):
             raise ValueError(f"rms must be a finite value >= 0 m, got {self.rms!r}")
         if not (math.isfinite(self.correlation_length) and self.correlation_length > 0):
-            raise ValueError(
-                f"correlation_length must be > 0 m, got {self.correlation_length!r}"
-            )
+            raise ValueError(f"correlation_length must be > 0 m, got {self.correlation_length!r}")
         if self.kernel not in _KERNELS:
             raise ValueError(f"kernel must be one of {_KERNELS}, got {self.kernel!r}")
         if not self.planes or any(p not in ("vertical", "horizontal") for p in self.planes):
@@ -197,8 +195,13 @@ def rails_from_coefficients(start, spacing, vertical, horizontal) -> tuple[Splin
     )
 
 
-def default_knots(correlation_length: float | None = None, *, start: float = -0.6,
-                  end: float = 0.6, spacing: float = 0.025) -> tuple[float, float, int]:
+def default_knots(
+    correlation_length: float | None = None,
+    *,
+    start: float = -0.6,
+    end: float = 0.6,
+    spacing: float = 0.025,
+) -> tuple[float, float, int]:
     """Knots ``(start, spacing, n_coeffs)`` covering ``[start, end]`` (m) at ``spacing`` (m),
     refined to at most ``ℓ/4`` for short correlation lengths ``ℓ`` (m).
 
@@ -207,8 +210,7 @@ def default_knots(correlation_length: float | None = None, *, start: float = -0.
     """
     if correlation_length is not None:
         spacing = min(spacing, correlation_length / 4)
-    n_seg = max(int(math.ceil((end - start) / spacing - 1e-9)), 1)
-    return float(start), float(spacing), n_seg + 3
+    return knot_grid(start, end, spacing)
 
 
 def linear_coefficients(start: float, spacing: float, n_coeffs: int, a, b):
@@ -218,7 +220,7 @@ def linear_coefficients(start: float, spacing: float, n_coeffs: int, a, b):
     ``a``, ``b``: end values, any leading shape ``(...)``; returns ``(..., n_coeffs)``.
     """
     length = (n_coeffs - 3) * spacing
-    t = ((np.arange(n_coeffs) - 1) * spacing / length)
+    t = (knot_centres(start, spacing, n_coeffs) - start) / length
     a = np.asarray(a, dtype=float)[..., None]
     b = np.asarray(b, dtype=float)[..., None]
     return a + (b - a) * t

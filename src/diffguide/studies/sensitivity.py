@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.types import Array, Float
-from ..guideway.rails import SplineRail
+from ..guideway.rails import SplineRail, knot_centres
 from ..machine.equilibrium import Machine
 from ..machine.kinematics import ERROR_NAMES, JointErrors, joint_errors
 
@@ -68,7 +68,7 @@ def spline_rails(
 
 def bump_centres(rail: SplineRail) -> np.ndarray:
     """Rail coordinate ``s`` (m) at the centre of each coefficient's basis function."""
-    return rail.start + (np.arange(rail.n_coeffs) - 1.0) * rail.spacing
+    return knot_centres(rail.start, rail.spacing, rail.n_coeffs)
 
 
 def influence_map(

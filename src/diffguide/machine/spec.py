@@ -1,0 +1,128 @@
+"""Typed machine specification, SI units: everything :func:`~diffguide.machine.build.build_machine`
+needs, as ``eqx.Module`` s.
+
+A :class:`MachineSpec` is built from a preset (:func:`diffguide.presets.majda2012`) or from a
+machine file (:func:`diffguide.io.config.spec_from_config`; the file is in user units, the spec in
+SI). Fields that studies differentiate are ordinary pytree leaves and may hold traced arrays —
+replace them with ``eqx.tree_at``::
+
+    spec = eqx.tree_at(lambda s: s.table.thickness, presets.majda2012(), t)   # t may be traced
+    machine = build_machine(spec)
+
+Differentiable: ``table.thickness``, ``table.material.E``, ``carriage.preload_fraction``,
+``carriage.capacity``, ``guideway.carriage_spacing`` and the screw's stiffness parameters.
+Everything that fixes the mesh topology (sizes, positions, point names, mesh divisions) is static
+(change it with ``dataclasses.replace``).
+"""
+
+from collections.abc import Mapping
+
+import equinox as eqx
+
+from .._core.types import Array, Float
+from ..fe.mesh import Rib
+from ..fe.table import TableSpec
+from ..guideway.carriage import CarriageSpec
+
+Pair = tuple[float, float]
+
+
+def _pair(value) -> Pair:
+    a, b = value
+    return (float(a), float(b))
+
+
+def _points(value) -> tuple[tuple[str, Pair], ...]:
+    items = value.items() if isinstance(value, Mapping) else value
+    return tuple((str(k), _pair(v)) for k, v in items)
+
+
+class GuidewaySpec(eqx.Module):
+    """Where the rails and carriages are (the ``[guideway]`` section of a machine file).
+
+    Arguments:
+        rail_y: Y of rail 1 and rail 2 (m), rail 1 first (the smaller Y).
+        carriage_x: X of the two carriages on each rail, from the table centre (m).
+        footprint: carriage footprint bolted to the table, (X, Y) (m).
+        carriage_spacing: ``None``, or the distance between the two carriages on each rail (m;
+            may be traced): moves the carriages about the centre of ``carriage_x`` keeping the
+            mesh topology (:func:`~diffguide.machine.build.build_machine`).
+    """
+
+    rail_y: Pair = eqx.field(static=True, converter=_pair)
+    carriage_x: Pair = eqx.field(static=True, converter=_pair)
+    footprint: Pair = eqx.field(static=True, converter=_pair)
+    carriage_spacing: float | Float[Array, ""] | None = None
+
+    def __check_init__(self):
+        if not self.rail_y[0] < self.rail_y[1]:
+            raise ValueError(f"rail_y: rail 1 must be at the smaller Y, got {self.rail_y}")
+        if not self.carriage_x[1] - self.carriage_x[0] >= self.footprint[0]:
+            raise ValueError(
+                f"carriage_x: the carriages overlap ({self.carriage_x} m, footprint "
+                f"{self.footprint[0]} m long)"
+            )
+
+
+class ScrewSpec(eqx.Module):
+    """The feed screw and its nut (the ``[screw]`` section of a machine file).
+
+    Arguments:
+        core_diameter: screw core diameter (m). E: its Young's modulus (Pa).
+        free_length_at_ref: fixed bearing to nut at x = 0 (m); the free length is this + x.
+        nut_xy: the nut's position under the table (m). nut_footprint: its flange, (X, Y) (m).
+    """
+
+    core_diameter: float | Float[Array, ""]
+    E: float | Float[Array, ""]
+    free_length_at_ref: float | Float[Array, ""]
+    nut_xy: Pair = eqx.field(static=True, converter=_pair)
+    nut_footprint: Pair = eqx.field(static=True, converter=_pair)
+
+
+class MachineSpec(eqx.Module):
+    """A whole machine: table, guideway layout, runner block, screw, control points, ribs.
+
+    Arguments:
+        table: the plate (:class:`~diffguide.fe.table.TableSpec`).
+        guideway: rails and carriage positions. carriage: the runner block (the same at every
+            position, :class:`~diffguide.guideway.carriage.CarriageSpec`). screw: screw and nut.
+        points: control points on the table top, ``{name: (x, y)}`` (m; stored as a tuple of
+            pairs, in order).
+        ribs: ribs under the plate (:class:`~diffguide.fe.mesh.Rib`, SI).
+        gravity: g (m/s²), along −Z. stroke: X stroke, symmetric about x = 0 (m).
+    """
+
+    table: TableSpec
+    guideway: GuidewaySpec
+    carriage: CarriageSpec
+    screw: ScrewSpec
+    points: tuple[tuple[str, Pair], ...] = eqx.field(static=True, converter=_points)
+    ribs: tuple[Rib, ...] = eqx.field(default=(), converter=tuple)
+    gravity: float = eqx.field(static=True, default=9.81)
+    stroke: float = eqx.field(static=True, default=0.7)
+
+    def __check_init__(self):
+        if not self.points:
+            raise ValueError("points: at least one control point is needed")
+        names = [n for n, _ in self.points]
+        if len(set(names)) != len(names):
+            raise ValueError(f"points: names must be unique, got {names}")
+        half_l, half_w = self.table.length / 2, self.table.width / 2
+        fx, fy = self.guideway.footprint
+        for y in self.guideway.rail_y:
+            if abs(y) + fy / 2 > half_w + 1e-12:
+                raise ValueError(f"guideway.rail_y: {y} m puts a carriage footprint off the table")
+        for x in self.guideway.carriage_x:
+            if abs(x) + fx / 2 > half_l + 1e-12:
+                raise ValueError(
+                    f"guideway.carriage_x: {x} m puts a carriage footprint off the table"
+                )
+        for name, (x, y) in self.points:
+            if abs(x) > half_l + 1e-12 or abs(y) > half_w + 1e-12:
+                raise ValueError(f"points: {name} at ({x}, {y}) m is off the table")
+
+    @property
+    def point_dict(self) -> dict[str, Pair]:
+        """The control points as ``{name: (x, y)}`` (m)."""
+        return dict(self.points)
