@@ -20,7 +20,6 @@ machine = majda2012_machine()
 x = np.linspace(-0.35, 0.35, 71)
 elastic = joint_errors(machine, paper_variant(2), x).user_units()
 rigid = joint_errors(machine.with_rigid_table(), paper_variant(2), x).user_units()
-fig = plot_joint_errors(x * 1e3, elastic, machine.point_names,
-                        "majda2012, variant 2 (rail 1 horizontal): elastic table (solid) vs rigid (dashed)",
-                        compare=rigid)
+title = "majda2012, variant 2 (rail 1 horizontal): elastic table (solid) vs rigid (dashed)"
+fig = plot_joint_errors(x * 1e3, elastic, machine.point_names, title, compare=rigid)
 atomic_savefig(fig, Path(__file__).parent / "variant2.png", dpi=80)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from diffguide.cli import main
-from diffguide.io.config import default_config, dump_config, load_config
+from diffguide.io.config import default_config, dump_config, load_config, spec_from_config
 from diffguide.machine.build import build_machine
 from diffguide.machine.kinematics import joint_errors
 from diffguide.machine.majda2012 import majda2012_machine, paper_variant
@@ -22,7 +22,9 @@ def test_config_machine_equals_preset_machine(tmp_path):
     path = tmp_path / "m.toml"
     path.write_text(dump_config(cfg))
     pos = np.linspace(-0.3, 0.3, 5)
-    a = joint_errors(build_machine(load_config(path)), paper_variant(1), pos).errors
+    a = joint_errors(
+        build_machine(spec_from_config(load_config(path))), paper_variant(1), pos
+    ).errors
     b = joint_errors(majda2012_machine(nx=10, ny=5), paper_variant(1), pos).errors
     np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-18)
 
@@ -37,7 +39,11 @@ def test_a_thicker_table_in_the_file_changes_the_result(tmp_path):
     assert cfg["table"]["thickness_mm"] == 80.0 and cfg["carriage"]["capacity_N"] == 22800.0
     assert len(cfg["ribs"]) == 1
     pos = np.linspace(-0.3, 0.3, 5)
-    thick = np.ptp(joint_errors(build_machine(cfg), paper_variant(1), pos).user_units()[:, 0, 3])
+    thick = np.ptp(
+        joint_errors(build_machine(spec_from_config(cfg)), paper_variant(1), pos).user_units()[
+            :, 0, 3
+        ]
+    )
     thin = np.ptp(
         joint_errors(majda2012_machine(nx=10, ny=5), paper_variant(1), pos).user_units()[:, 0, 3]
     )

@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from diffguide.guideway.rails import BumpRail, SinusoidalRail, StraightRail
-from diffguide.io.config import default_config
+from diffguide.io.config import default_config, spec_from_config
 from diffguide.machine import equilibrium, rigid_body_map
 from diffguide.machine.build import build_machine
 from diffguide.machine.majda2012 import majda2012_machine, paper_variant
@@ -147,7 +147,7 @@ def machine_cases(draw):
 
 def check_random_machine(case):
     cfg, amp, lam, phase = case
-    m = build_machine(cfg)
+    m = build_machine(spec_from_config(cfg))
     rails = (
         SinusoidalRail(amp, lam, phase),
         SinusoidalRail(0.5 * amp, 0.7 * lam, 0.0, "horizontal"),

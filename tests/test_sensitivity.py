@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from diffguide.io.config import default_config
+from diffguide.io.config import default_config, spec_from_config
 from diffguide.machine.build import build_machine
 from diffguide.machine.kinematics import joint_errors
 from diffguide.machine.majda2012 import paper_variant
@@ -28,7 +28,7 @@ def _rebuilt(spacing):
     """The coarse machine rebuilt from a configuration with carriages ±spacing/2 (m)."""
     cfg = default_config()
     cfg["guideway"]["carriage_x_mm"] = (-500 * spacing, 500 * spacing)
-    return build_machine(cfg, **MESH)
+    return build_machine(spec_from_config(cfg), **MESH)
 
 
 def _table_arrays(machine):
