@@ -128,17 +128,7 @@ def _moved_carriages(model, carriage_x0, spacing):
     return nodes, ref_xy, ref_x[:-1]
 
 
-def build_machine(
-    spec: MachineSpec | None = None,
-    *,
-    thickness=None,
-    E=None,
-    preload_fraction=None,
-    carriage_spacing=None,
-    nx: int | None = None,
-    ny: int | None = None,
-    points: dict[str, tuple[float, float]] | None = None,
-) -> Machine:
+def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
     """Build (and condense) the machine of a specification; default: ``majda2012``.
 
     Arguments:
@@ -146,10 +136,11 @@ def build_machine(
             :func:`diffguide.presets.majda2012`). A configuration dictionary (diffguide 0.1,
             user units) is still accepted, converted by :func:`diffguide.io.config.spec_from_config`
             (deprecated).
-        thickness, E, preload_fraction, carriage_spacing, nx, ny, points: shorthands for
-            replacing those fields of ``spec`` (:func:`with_overrides`; SI, may be traced).
-            ``carriage_spacing`` keeps the mesh topology with the footprint lines moved (module
-            docstring), valid while no footprint line passes another grid line (checked).
+        overrides: ``thickness``, ``E``, ``preload_fraction``, ``carriage_spacing``, ``nx``,
+            ``ny``, ``points``: shorthands for replacing those fields of ``spec``
+            (:func:`with_overrides`; SI, may be traced). ``carriage_spacing`` keeps the mesh
+            topology with the footprint lines moved (module docstring), valid while no footprint
+            line passes another grid line (checked).
     """
     if spec is None:
         from ..presets import majda2012
@@ -165,16 +156,7 @@ def build_machine(
             stacklevel=2,
         )
         spec = spec_from_config(spec)
-    spec = with_overrides(
-        spec,
-        thickness=thickness,
-        E=E,
-        preload_fraction=preload_fraction,
-        carriage_spacing=carriage_spacing,
-        nx=nx,
-        ny=ny,
-        points=points,
-    )
+    spec = with_overrides(spec, **overrides)
     model = table_from_spec(spec)
     rail_y = spec.guideway.rail_y
     carriage_x, carriage_rail = [], []

@@ -51,15 +51,8 @@ def majda2012_machine(
     """
     if law not in ("hertz", "rivin"):
         raise ValueError(f"law must be 'hertz' or 'rivin', got {law!r}")
-    return build_machine(
-        presets.majda2012(law),
-        thickness=thickness,
-        E=E,
-        preload_fraction=preload_fraction,
-        nx=nx,
-        ny=ny,
-        points=points,
-    )
+    overrides = dict(thickness=thickness, E=E, preload_fraction=preload_fraction, points=points)
+    return build_machine(presets.majda2012(law), nx=nx, ny=ny, **overrides)
 
 
 def paper_variant(
