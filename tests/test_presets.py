@@ -3,7 +3,9 @@
 diffguide 0.1 had two ways to the paper's machine: the preset functions
 (``majda2012_machine()``, ``majda2012_carriage()``, ``fe.majda2012_table()``) and the
 configuration path (``build_machine(default_config())``, ``carriage_from_config``,
-``table_from_config``). These tests pin that they agree leaf by leaf before one path is removed.
+``table_from_config``). These tests pinned that they agree leaf by leaf before the two were
+unified; both now start from ``diffguide.presets.majda2012()`` (the configuration path through
+its TOML mapping, ``io.config.KEYS``), and the tests keep that mapping faithful.
 """
 
 import dataclasses
