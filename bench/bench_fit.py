@@ -28,8 +28,8 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 from diffguide.inverse import fit_rails  # noqa: E402
-from diffguide.machine.majda2012 import majda2012_machine  # noqa: E402
 from diffguide.io.measurements import read_measurements  # noqa: E402
+from diffguide.machine.majda2012 import majda2012_machine  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data" / "majda2012_measurements.csv"

@@ -42,7 +42,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..io.files import atomic_write_text
+    from ..io.atomic import atomic_write_text
     from ..io.importers import format_long, import_readings
     from ..io.measurements import merge_readings
 

@@ -16,7 +16,8 @@ equilibrium).
 ``∂E_AX,c(x_i)/∂c_k`` for the B-spline coefficients ``c_k`` of a
 :class:`~diffguide.guideway.rails.SplineRail`, by forward mode (:func:`jax.jacfwd`; never ``jacrev``
 here: reverse mode through the vmapped implicit solves took 21–37 s and 14.5 GB). Units rad/m =
-µrad per µm of coefficient (a coefficient of 1 µm is a bump of peak 2/3 µm centred at ``s₀ + (k−1)h``, ``4h`` wide at its base).
+µrad per µm of coefficient (a coefficient of 1 µm is a bump of peak 2/3 µm centred at
+``s₀ + (k−1)h``, ``4h`` wide at its base).
 """
 
 from collections.abc import Sequence
