@@ -4,7 +4,6 @@ import math
 
 import numpy as np
 import pytest
-from diffguide.machine.kinematics import ERROR_NAMES
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -15,6 +14,7 @@ from diffguide.io.measurements import (
     parse_readings,
     read_measurements,
 )
+from diffguide.machine.kinematics import ERROR_NAMES
 
 HEADER = "position_mm,point,x_mm,y_mm,quantity,value,unit"
 

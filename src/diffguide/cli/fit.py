@@ -486,6 +486,7 @@ def _export_compensation(args, cfg, measured_points, fit, family, x0_mm=0.0) -> 
     ``--format`` (machine coordinates ``X = x + x0``; σ from the posterior), with a warning
     for each point where a rigid-body compensation from ``--at`` would not hold."""
     from ..io.atomic import atomic_write_text
+    from ..io.config import spec_from_config
     from ..machine.build import build_machine
     from ..machine.kinematics import joint_errors
     from ..studies.compensation import location_warnings
