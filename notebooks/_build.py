@@ -43,10 +43,11 @@ jax.config.update("jax_enable_x64", True)  # micrometres on metre-scale geometry
 
 import numpy as np
 import matplotlib.pyplot as plt
-plt.rcParams["figure.dpi"] = 60  # keep the committed outputs small
+plt.rcParams["figure.dpi"] = 110  # legible legends (60 dpi was not)
 from diffguide.machine.majda2012 import majda2012_machine, paper_variant
 from diffguide.machine.kinematics import joint_errors, ERROR_NAMES
 from diffguide.plotting.errors import plot_joint_errors
+from diffguide.plotting import figure_of
 
 machine = majda2012_machine()            # 1000 x 500 x 50 mm cast-iron plate, 4 size-25 ball blocks
 rigid = machine.with_rigid_table()       # the same machine with an infinitely stiff table
@@ -70,8 +71,8 @@ about twice the roll of those at −X (P2, P3), while a rigid table gives every 
 roll. The elastic table also yaws a little, which a rigid one cannot.
 """),
     code("""
-fig = plot_joint_errors(positions * 1e3, results[1][0], machine.point_names,
-                        "variant 1: rail 1 vertical", compare=results[1][1])
+fig = figure_of(plot_joint_errors(positions * 1e3, results[1][0], machine.point_names,
+                        "variant 1: rail 1 vertical", compare=results[1][1]))
 """),
     md("""
 ## Variant 2 — one rail with a horizontal error
@@ -81,13 +82,13 @@ has opposite signs at P1 and P4: a rigid table has no roll at all here (dashed l
 Yaw is nearly the same at all points — the table is stiff in its plane.
 """),
     code("""
-fig = plot_joint_errors(positions * 1e3, results[2][0], machine.point_names,
-                        "variant 2: rail 1 horizontal", compare=results[2][1])
+fig = figure_of(plot_joint_errors(positions * 1e3, results[2][0], machine.point_names,
+                        "variant 2: rail 1 horizontal", compare=results[2][1]))
 """),
     md("## Variant 3 — rail 1 vertical, rail 2 horizontal"),
     code("""
-fig = plot_joint_errors(positions * 1e3, results[3][0], machine.point_names,
-                        "variant 3: rail 1 vertical, rail 2 horizontal", compare=results[3][1])
+fig = figure_of(plot_joint_errors(positions * 1e3, results[3][0], machine.point_names,
+                        "variant 3: rail 1 vertical, rail 2 horizontal", compare=results[3][1]))
 """),
     md("""
 ## The ranges side by side
@@ -146,10 +147,11 @@ jax.config.update("jax_enable_x64", True)
 
 import numpy as np
 import matplotlib.pyplot as plt
-plt.rcParams["figure.dpi"] = 60
+plt.rcParams["figure.dpi"] = 110
 from diffguide.machine.majda2012 import majda2012_machine
 from diffguide.io.measurements import read_measurements
 from diffguide.inverse import fit_rails, identifiability
+from diffguide.plotting import figure_of
 from diffguide.plotting.fit import plot_profiles
 
 meas = read_measurements("../data/majda2012_measurements.csv")
@@ -192,7 +194,7 @@ for r in (1, 2):
     truth[r - 1, 1] = np.interp(s * 1e3, a[:, 0], a[:, 2]) * 1e-6
 truth = fit.basis.gauge_fix(s, truth.reshape(4, -1), fit.fix_slope).reshape(2, 2, -1)
 profiles = {"elastic": fit.profiles(s), "rigid table": rigid.profiles(s)}
-fig = plot_profiles(s, profiles, truth=truth)
+fig = figure_of(plot_profiles(s, profiles, truth=truth))
 for name, (val, sig) in profiles.items():
     err = val - truth
     print(f"{name:12s} RMS error {np.sqrt(np.mean(err**2)) * 1e6:.3f} µm "

@@ -47,7 +47,9 @@ from diffguide.studies.montecarlo import batched_sweep
 from diffguide.studies.random_rails import GaussianRailModel, MOUNTING_CLASSES, sample_rails
 from diffguide.guideway.rails import bspline_matrix
 from diffguide.plotting.montecarlo import plot_monte_carlo
+from diffguide.plotting import figure_of
 %matplotlib inline
+plt.rcParams["figure.dpi"] = 110  # legible legends
 
 machine = majda2012_machine()              # elastic 1000 x 500 x 50 mm table, 4 size-25 blocks
 positions = np.linspace(-0.35, 0.35, 71)   # the 700 mm stroke (m); x_ref = 0
@@ -93,7 +95,7 @@ but the carriages sit 320 × 340 mm apart and the corners overhang them.
 """),
     code(r"""
 rd_1um, res_1um = roll_difference(GaussianRailModel(1e-6, 0.2))
-fig = plot_monte_carlo(res_1um, "majda2012, rails σ = 1 µm, ℓ = 200 mm")
+fig = figure_of(plot_monte_carlo(res_1um, "majda2012, rails σ = 1 µm, ℓ = 200 mm"))
 print(f"{res_1um.n_samples} samples in {res_1um.stats['wall_s']:.1f} s "
       f"(first chunk, with compilation: {res_1um.stats['first_chunk_s']:.1f} s)")
 """),

@@ -53,7 +53,7 @@ from diffguide.machine.majda2012 import paper_variant
 from diffguide.studies.sensitivity import (CORNERS, bump_centres, corner_roll, influence_map,
                                    roll_spread, spline_rails)
 
-plt.rcParams["figure.dpi"] = 72
+plt.rcParams["figure.dpi"] = 110
 # P1/P4 and P2/P3 nearly coincide in variant 1: solid and dashed lines
 STYLE = {"P1": "-", "P2": "-", "P3": "--", "P4": "--"}
 cfg = default_config()                     # the majda2012 preset: 1000 x 500 x 50 mm table

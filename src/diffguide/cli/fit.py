@@ -442,10 +442,13 @@ def _jsonable(obj):
 
 def _figures(meas, fits, profiles, s_m, truth):
     from ..io.measurements import QUANTITIES
+    from ..plotting import figure_of
     from ..plotting.fit import plot_curves, plot_profiles
 
     labels = {"": "elastic", "_rigid": "rigid table"}
-    fig1 = plot_profiles(s_m, {labels[k]: v for k, v in profiles.items()}, truth=truth)
+    fig1 = figure_of(
+        plot_profiles(s_m, {labels[k]: v for k, v in profiles.items()}, truth=truth)
+    )
     chan = meas.channel_index()
     channels = []
     for c, (_, q, _) in enumerate(meas.channels):
@@ -455,7 +458,7 @@ def _figures(meas, fits, profiles, s_m, truth):
         channels.append((meas.channel_label(c), unit,
                          meas.position[sel] * 1e3, meas.value[sel] * 1e6,
                          meas.sigma[sel] * 1e6, fits[""].fitted[sel] * 1e6, rigid))
-    fig2 = plot_curves(channels)
+    fig2 = figure_of(plot_curves(channels))
     return {"profiles.png": fig1, "curves.png": fig2}
 
 

@@ -219,6 +219,7 @@ def run(args) -> int:
         )
     say(summary(result))
     if args.plot:
+        from ..plotting import figure_of
         from ..plotting.montecarlo import plot_monte_carlo
 
         table = "rigid table" if args.rigid_table else "elastic table"
@@ -226,7 +227,7 @@ def run(args) -> int:
             f"{name}, {table}: rails σ = {args.rail_rms_um:g} µm, ℓ = {args.corr_mm:g} mm "
             f"({args.kernel}, {args.planes}), mounting {args.mounting}, {len(positions)} positions"
         )
-        fig = plot_monte_carlo(result, title)
+        fig = figure_of(plot_monte_carlo(result, title))
         atomic_savefig(fig, args.plot, dpi=110)
         say(f"wrote {args.plot}")
     if n_bad == result.n_samples:

@@ -177,17 +177,18 @@ def run(args) -> int:
     say(f"wrote {args.out}")
     if args.field_plot:
         from ..machine.kinematics import error_field
+        from ..plotting import figure_of
         from ..plotting.errors import plot_error_field
 
         k = len(positions) - 1
         if args.field_at is not None:
             k = int(np.argmin(np.abs(positions * 1e3 - args.field_at)))
         xy, field = error_field(machine, je, k)
-        fig = plot_error_field(
+        fig = figure_of(plot_error_field(
             xy,
             np.asarray(field) * 1e6,
             f"{name}: errors over the table at x = {positions[k] * 1e3:g} mm",
-        )
+        ))
         atomic_savefig(fig, args.field_plot, dpi=100)
         say(f"wrote {args.field_plot}")
     if args.export_compensation:
@@ -222,7 +223,9 @@ def run(args) -> int:
 
         what = f"rails from {args.rails}" if args.rails else f"variant {args.variant}"
         table = "rigid table" if args.rigid_table else "elastic table"
-        fig = plot_joint_errors(positions * 1e3, errs, je.point_names, f"{name}, {what}, {table}")
+        fig = figure_of(
+            plot_joint_errors(positions * 1e3, errs, je.point_names, f"{name}, {what}, {table}")
+        )
         atomic_savefig(fig, args.plot, dpi=110)
         say(f"wrote {args.plot}")
     return 0

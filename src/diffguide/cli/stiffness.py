@@ -1,6 +1,5 @@
 """``diffguide stiffness``: a carriage's deflection against load (the paper's Fig. 3)."""
 
-
 import numpy as np
 
 from ..io.atomic import atomic_savefig, atomic_write_text
@@ -89,9 +88,12 @@ def run(args) -> int:
         + f"; wrote {args.out}"
     )
     if args.plot:
+        from ..plotting import figure_of
         from ..plotting.guideway import plot_static_characteristic
 
-        fig = plot_static_characteristic(curves, title=f"{args.preset}: static characteristic")
+        fig = figure_of(
+            plot_static_characteristic(curves, title=f"{args.preset}: static characteristic")
+        )
         atomic_savefig(fig, args.plot, dpi=120)
         say(f"wrote {args.plot}")
     return 0

@@ -66,10 +66,15 @@ def run(args) -> int:
         say(f"wrote {args.out}")
     if args.plot:
         from ..io.atomic import atomic_savefig
+        from ..plotting import figure_of
         from ..plotting.table import plot_table
 
-        fig = plot_table(
-            model, u, title=f"{machine_name}: sag under gravity on four carriages, max {sag:.2f} µm"
+        fig = figure_of(
+            plot_table(
+                model,
+                u,
+                title=f"{machine_name}: sag under gravity on four carriages, max {sag:.2f} µm",
+            )
         )
         atomic_savefig(fig, args.plot, dpi=120)
         say(f"wrote {args.plot}")

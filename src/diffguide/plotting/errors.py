@@ -4,9 +4,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..io.units import ERROR_LABELS
+from . import axes_grid
 
 
-def plot_joint_errors(positions_mm, errors_user, point_names, title="", compare=None):
+def plot_joint_errors(positions_mm, errors_user, point_names, title="", compare=None, *, ax=None):
     """Six panels (EXX … ECX) against position, one line per control point.
 
     Arguments:
@@ -14,10 +15,11 @@ def plot_joint_errors(positions_mm, errors_user, point_names, title="", compare=
         errors_user: (n_pos, n_points, 6) errors in µm / µrad.
         point_names: names of the points.
         compare: optional second set of errors (same shape), drawn dashed (e.g. rigid table).
+        ax: six Axes to draw into (default: a new 2 × 3 figure).
     Returns:
-        the matplotlib ``Figure``.
+        the (2, 3) array of Axes.
     """
-    fig, axes = plt.subplots(2, 3, figsize=(13, 6.5), sharex=True, constrained_layout=True)
+    fig, axes = axes_grid(ax, 2, 3, figsize=(13, 6.5), sharex=True, constrained_layout=True)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, ax in enumerate(axes.flat):
         name, unit, what = ERROR_LABELS[k]
@@ -38,7 +40,7 @@ def plot_joint_errors(positions_mm, errors_user, point_names, title="", compare=
         axes.flat[1].legend(fontsize=8)
     if title:
         fig.suptitle(title)
-    return fig
+    return axes
 
 
 def error_ranges(errors_user) -> np.ndarray:
@@ -46,21 +48,20 @@ def error_ranges(errors_user) -> np.ndarray:
     return np.ptp(errors_user, axis=0)
 
 
-def plot_error_field(xy, field_user, title="", components=(2, 3, 4)):
+def plot_error_field(xy, field_user, title="", components=(2, 3, 4), *, ax=None):
     """Maps of error components over the table top (µm / µrad), one panel each.
 
     Arguments:
         xy: (n_nodes, 2) node positions (m). field_user: (n_nodes, 6) errors in µm / µrad
             (:func:`diffguide.machine.kinematics.error_field` scaled). components: indices into
-            EXX … ECX (default EZX, roll, pitch).
+            EXX … ECX (default EZX, roll, pitch). ax: one Axes per component (default: a
+            new figure).
+    Returns:
+        the (1, n) array of Axes.
     """
     xy = np.asarray(xy) * 1e3
-    fig, axes = plt.subplots(
-        1,
-        len(components),
-        figsize=(4.6 * len(components), 3.2),
-        constrained_layout=True,
-        squeeze=False,
+    fig, axes = axes_grid(
+        ax, 1, len(components), figsize=(4.6 * len(components), 3.2), constrained_layout=True
     )
     for ax, k in zip(axes[0], components):
         name, unit, what = ERROR_LABELS[k]
@@ -72,4 +73,4 @@ def plot_error_field(xy, field_user, title="", components=(2, 3, 4)):
     axes[0, 0].set_ylabel("y (mm)")
     if title:
         fig.suptitle(title)
-    return fig
+    return axes

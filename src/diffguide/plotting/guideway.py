@@ -3,15 +3,17 @@
 import matplotlib.pyplot as plt
 
 
-def plot_static_characteristic(curves: dict, title: str = ""):
+def plot_static_characteristic(curves: dict, title: str = "", *, ax=None):
     """Deflection (µm) against load (kN), one line per direction.
 
     Arguments:
-        curves: ``{direction: (loads_N, deflections_um)}``.
+        curves: ``{direction: (loads_N, deflections_um)}``. ax: Axes to draw into (default: a
+            new figure).
     Returns:
-        the matplotlib ``Figure``.
+        the Axes.
     """
-    fig, ax = plt.subplots(figsize=(6, 4.2), constrained_layout=True)
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 4.2), constrained_layout=True)
     styles = {"down": "-", "up": "--", "lateral": ":"}
     for name, (loads, defl) in curves.items():
         ax.plot(loads / 1e3, defl, styles.get(name, "-"), lw=2, label=name)
@@ -21,4 +23,4 @@ def plot_static_characteristic(curves: dict, title: str = ""):
     ax.legend(title="load direction")
     if title:
         ax.set_title(title)
-    return fig
+    return ax

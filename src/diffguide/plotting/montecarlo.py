@@ -1,12 +1,12 @@
 """Figures of a Monte Carlo tolerance study: error ranges and corner roll differences."""
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from ..io.units import ERROR_LABELS as _LABELS
+from . import axes_grid
 
 
-def plot_monte_carlo(result, title: str = "", quantile: float = 0.95):
+def plot_monte_carlo(result, title: str = "", quantile: float = 0.95, *, ax=None):
     """Distributions over the samples (converged samples only).
 
     Six panels: the range of each joint error at each control point (box: 25–75 %, whiskers:
@@ -16,15 +16,16 @@ def plot_monte_carlo(result, title: str = "", quantile: float = 0.95):
 
     Arguments:
         result: a :class:`diffguide.studies.montecarlo.MonteCarloResult`.
-        title: figure title. quantile: marked on the last panel (0.95).
+        title: figure title. quantile: marked on the last panel (0.95). ax: eight Axes to draw
+            into (default: a new 2 × 4 figure).
     Returns:
-        the matplotlib ``Figure``.
+        the (2, 4) array of Axes.
     """
     ok = np.asarray(result.converged, dtype=bool)
     ranges = result.ranges[ok] * 1e6
     rd = result.roll_difference[ok] * 1e6
     names = result.point_names
-    fig, axes = plt.subplots(2, 4, figsize=(16, 7), constrained_layout=True)
+    fig, axes = axes_grid(ax, 2, 4, figsize=(16, 7), constrained_layout=True)
     flat = list(axes.flat)
     for k, ax in enumerate(flat[:6]):
         name, unit, what = _LABELS[k]
@@ -61,4 +62,4 @@ def plot_monte_carlo(result, title: str = "", quantile: float = 0.95):
     n_bad = int((~ok).sum())
     sub = f"{ok.sum()} samples" + (f" ({n_bad} not converged, left out)" if n_bad else "")
     fig.suptitle(f"{title}\n{sub}" if title else sub)
-    return fig
+    return axes
