@@ -272,6 +272,26 @@ class RailFit(eqx.Module):
         return tuple(SplineRail(self.basis.start, self.basis.spacing, jnp.asarray(c[r, 0]),
                                 jnp.asarray(c[r, 1])) for r in range(2))
 
+    def to_dataframe(self, s=None):
+        """The profiles as a ``pandas.DataFrame`` in user units, the columns of ``rails.csv``:
+        ``rail, s_mm, vertical_um, vertical_sigma_um, horizontal_um, horizontal_sigma_um`` at
+        ``s`` (m; default every 2 mm over the fitted range). Needs the ``[pandas]`` extra."""
+        from .._core.frames import require_pandas
+
+        pd = require_pandas()
+        if s is None:
+            s = np.arange(self.basis.start, self.basis.end + 1e-12, 2e-3)
+        s = np.asarray(s, dtype=float)
+        val, sig = self.profiles(s)
+        parts = []
+        for r in range(2):
+            parts.append(pd.DataFrame({
+                "rail": r + 1, "s_mm": s * 1e3,
+                "vertical_um": val[r, 0] * 1e6, "vertical_sigma_um": sig[r, 0] * 1e6,
+                "horizontal_um": val[r, 1] * 1e6, "horizontal_sigma_um": sig[r, 1] * 1e6,
+            }))
+        return pd.concat(parts, ignore_index=True)
+
 
 def visited_range(machine: Machine, positions) -> tuple[float, float]:
     """Rail length ``[lo, hi]`` (m) the rolling elements visit over ``positions`` (m) and x = 0."""

@@ -70,6 +70,27 @@ class JointErrors(eqx.Module):
 
         return to_user(self.errors)
 
+    def to_dataframe(self):
+        """A ``pandas.DataFrame`` in user units, one row per position and point, as
+        ``diffguide simulate`` writes: ``position_mm, point, x_mm, y_mm, EXX_um, EYX_um, EZX_um,
+        EAX_urad, EBX_urad, ECX_urad, converged`` (needs the ``[pandas]`` extra)."""
+        from .._core.frames import require_pandas
+
+        pd = require_pandas()
+        errs = self.user_units()
+        n_pos, n_pt = errs.shape[:2]
+        xy = np.asarray(self.points_xy) * 1e3
+        data = {
+            "position_mm": np.repeat(np.asarray(self.positions) * 1e3, n_pt),
+            "point": np.tile(np.asarray(self.point_names, dtype=object), n_pos),
+            "x_mm": np.tile(xy[:, 0], n_pos),
+            "y_mm": np.tile(xy[:, 1], n_pos),
+        }
+        for k, name in enumerate(ERROR_NAMES):
+            data[f"{name}_{'um' if k < 3 else 'urad'}"] = errs[:, :, k].reshape(-1)
+        data["converged"] = np.repeat(np.broadcast_to(np.asarray(self.converged), (n_pos,)), n_pt)
+        return pd.DataFrame(data)
+
     def error(self, name: str, point: str) -> jax.Array:
         """One error curve (SI) by ISO name (``"EBX"``) and point name (``"P1"``)."""
         if name not in ERROR_NAMES:
