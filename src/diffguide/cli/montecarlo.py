@@ -7,7 +7,6 @@ import time
 
 import numpy as np
 
-from ..io.atomic import atomic_savefig, atomic_write_text
 from ._common import add_machine_arguments
 from .simulate import default_positions, parse_mesh, parse_positions
 
@@ -160,6 +159,8 @@ def split_cpu_into_devices(n: int | None = None) -> bool:
 
 
 def run(args) -> int:
+    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
+
     _check(args)
     if args.cpu_devices is None or args.cpu_devices > 1:
         split_cpu_into_devices(args.cpu_devices)  # before the first array; no-op afterwards

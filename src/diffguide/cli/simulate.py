@@ -4,7 +4,6 @@ import argparse
 
 import numpy as np
 
-from ..io.atomic import atomic_savefig, atomic_write_text
 from ._common import add_machine_arguments, machine_config
 
 
@@ -126,6 +125,7 @@ def parse_mesh(text: str) -> tuple[int, int]:
 def run(args) -> int:
     import sys
 
+    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
     from ..io.config import spec_from_config
     from ..io.rails_csv import read_rails_csv
     from ..io.units import error_columns

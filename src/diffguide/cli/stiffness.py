@@ -2,8 +2,6 @@
 
 import numpy as np
 
-from ..io.atomic import atomic_savefig, atomic_write_text
-
 PRESETS = ("majda2012", "majda2012-rivin", "roller25")
 
 
@@ -50,6 +48,7 @@ def carriage_for(preset: str):
 
 def run(args) -> int:
     from ..guideway.solve import static_characteristics
+    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
 
     if not args.max_load > 0:
         raise ValueError(f"--max-load must be > 0 N, got {args.max_load}")
