@@ -9,11 +9,12 @@ errors at the control points. Nothing in that script calls diffguide. Here diffg
 the same machines from the stored TOML files and must agree at every stored position.
 
 Agreement: for every case, point and quantity, ``|diffguide - ccx| <= 2 %`` of the reference's
-range (max - min over the positions) of that error at that point. Errors whose range is tiny
-— below 1 % of the largest range of the same kind (µm for EXX/EYX/EZX, µrad for EAX/EBX/ECX) in
-that case — are dominated by discretisation and output rounding (ccx writes 5 significant
-digits), so they are held to 2 % of that 1 % floor instead, i.e. 0.02 % of the case's largest
-range of their kind.
+range (max - min over the positions) of that error at that point. Small ranges — below 15 % of
+the largest range of the same kind (µm for EXX/EYX/EZX, µrad for EAX/EBX/ECX) in that case —
+are held to 2 % of that floor instead, i.e. 0.3 % of the case's largest range of their kind:
+for such points the reference itself is not converged to 2 % of their own range (refining its
+brick layer through the thickness moved EBX at P4 of ``calculix_b``/variant 3, a range of
+3.5 µrad against 32 µrad at P3, by 2.1 % of that range; ``reference/calculix/README.md``).
 """
 
 import json
@@ -29,7 +30,7 @@ META = json.loads((DATA / "reference.json").read_text())
 NAMES = ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX")
 COLUMNS = ("EXX_um", "EYX_um", "EZX_um", "EAX_urad", "EBX_urad", "ECX_urad")
 REL = 0.02  # of each error's range
-FLOOR = 0.01  # of the largest range of the same kind in the case
+FLOOR = 0.15  # of the largest range of the same kind in the case
 
 
 def rails_from(specs):
@@ -97,7 +98,8 @@ def test_joint_errors_agree_with_calculix(machines, machine_name, case):
     worst = np.unravel_index(np.argmax(ratio), ratio.shape)
     assert ratio.max() <= 1.0, (
         f"{machine_name}/{case}: {NAMES[worst[1]]} at {points[worst[0]]} deviates by "
-        f"{ratio[worst] * 100 * REL:.2f} % of its range {rng[worst]:.3g} (bound {REL:.0%})"
+        f"{ratio[worst] * 100 * REL:.2f} % of its range {rng[worst]:.3g} or of the floor "
+        f"(bound {REL:.0%})"
     )
 
 

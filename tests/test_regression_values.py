@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import diffguide as dg
-from diffguide.majda2012 import paper_variant
+
+paper_variant = dg.paper_variant
 
 REL = 0.02
 

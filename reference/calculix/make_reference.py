@@ -234,6 +234,8 @@ MACHINES = {
         "toml": "calculix_b.toml",
         "cases": ["variant1", "variant3", "both_bent"],
         "positions": {"default": list(np.linspace(-0.3, 0.3, 9))},
+        # one brick layer is 3 % of a range off the two-layer model at P4 (EBX) in variant 3
+        "mesh": {"variant3": {"nx": 40, "ny": 20, "element": "C3D20R", "layers": 2}},
     },
 }
 
@@ -754,8 +756,10 @@ def main(argv=None):
         for case in args.cases or spec["cases"]:
             rails = CASES[case]
             positions = spec["positions"].get(case, spec["positions"]["default"])
+            mesh_spec = spec.get("mesh", {}).get(case, DEFAULT_MESH)
+            case_mesh = mesh_for(mach, mesh_spec)
             t0 = datetime.datetime.now()
-            errors, forces = sweep(mach, mesh, law, rails, positions, table, args.workers)
+            errors, forces = sweep(mach, case_mesh, law, rails, positions, table, args.workers)
             dt = (datetime.datetime.now() - t0).total_seconds()
             fname = f"{mname}_{case}.csv"
             write_csv(args.out / fname, list(mach["points"]), positions, errors, mach["points"])
@@ -763,6 +767,7 @@ def main(argv=None):
                 "csv": fname,
                 "rails": list(rails),
                 "positions_mm": [round(x * 1e3, 6) for x in positions],
+                "mesh": {**mesh_spec, "nodes": len(case_mesh["coords"])},
                 "ccx_seconds": round(dt, 1),
                 **forces,
             }
