@@ -14,8 +14,9 @@ PACKAGE = Path(diffguide.__file__).parent
 
 
 def test_top_level_shows_the_layers():
+    markers = ("__pycache__", "py.typed")  # not modules: the byte-code cache, PEP 561 marker
     entries = sorted(
-        p.name for p in PACKAGE.iterdir() if p.name != "__pycache__" and not p.name.startswith(".")
+        p.name for p in PACKAGE.iterdir() if p.name not in markers and not p.name.startswith(".")
     )
     assert len(entries) <= 12, entries
     assert "measurements.py" not in entries  # now io/measurements.py + inverse/data.py

@@ -1,6 +1,6 @@
 """Machine configuration files (TOML): every parameter of a machine, units in the key names.
 
-A configuration is a nested mapping ``{section: {key: value}}``. :data:`SCHEMA` lists every key
+A configuration is a nested mapping ``{section: {key: value}}``. :func:`schema` lists every key
 with its default (the ``majda2012`` preset), its kind and its allowed range; a file only needs the
 keys it changes. :func:`load_config` reads and validates a file — every error names the file, the
 key and the allowed range, in one line — and :func:`dump_config` writes one (``diffguide config
@@ -12,6 +12,7 @@ builds from (:func:`config_from_spec` goes back); the defaults are
 Units: mm, µm, GPa, N, kg/m³, degrees, as the key names say; :data:`KEYS` converts them to SI.
 """
 
+import functools
 import math
 import os
 import tomllib
@@ -287,14 +288,26 @@ def _defaults() -> dict:
     return config_from_spec(presets.majda2012())
 
 
-_DEFAULTS = _defaults()
-#: ``{section: {key: (default, kind, low, high, help)}}``: every key with its default (the
-#: ``majda2012`` preset, :func:`diffguide.presets.majda2012`), kind and allowed range.
-SCHEMA: dict[str, dict[str, tuple]] = {
-    sec: {key: (_DEFAULTS[sec][key], *k[2:]) for key, k in keys.items()}
-    for sec, keys in KEYS.items()
-}
+@functools.cache
+def schema() -> dict[str, dict[str, tuple]]:
+    """``{section: {key: (default, kind, low, high, help)}}``: every key with its default (the
+    ``majda2012`` preset, :func:`diffguide.presets.majda2012`), kind and allowed range. Built on
+    first use (the preset's types import JAX; ``--help`` should not)."""
+    defaults = _defaults()
+    return {
+        sec: {key: (defaults[sec][key], *k[2:]) for key, k in keys.items()}
+        for sec, keys in KEYS.items()
+    }
+
+
 RIB_SCHEMA: dict[str, tuple] = {key: (_RIB_DEFAULTS[key], *k[2:]) for key, k in RIB_KEYS.items()}
+
+
+def __getattr__(name: str):
+    """``SCHEMA``: :func:`schema` (a module constant in diffguide 0.1)."""
+    if name == "SCHEMA":
+        return schema()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def default_config() -> dict:
@@ -396,20 +409,20 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
                 spec = (None, "pair", -1e5, 1e5, "point on the table top")
                 cfg["points"][str(name)] = _check(xy, spec, f"{source}: key 'points.{name}'")
             continue
-        if section not in SCHEMA:
+        if section not in schema():
             raise ValueError(
-                f"{where}: unknown section; allowed: {', '.join([*SCHEMA, 'points', 'ribs'])}"
+                f"{where}: unknown section; allowed: {', '.join([*schema(), 'points', 'ribs'])}"
             )
         if not isinstance(body, dict):
             raise ValueError(f"{where}: must be a table of keys")
         for key, value in body.items():
-            if key not in SCHEMA[section]:
+            if key not in schema()[section]:
                 raise ValueError(
                     f"{source}: key '{section}.{key}' is unknown; allowed: "
-                    f"{', '.join(SCHEMA[section])}"
+                    f"{', '.join(schema()[section])}"
                 )
             cfg[section][key] = _check(
-                value, SCHEMA[section][key], f"{source}: key '{section}.{key}'"
+                value, schema()[section][key], f"{source}: key '{section}.{key}'"
             )
     _check_consistency(cfg, source)
     return cfg
@@ -492,7 +505,7 @@ def dump_config(cfg: dict, title: str = "") -> str:
         "# units are in the key names; every key is optional (defaults: majda2012)",
         "",
     ]
-    for section, keys in SCHEMA.items():
+    for section, keys in schema().items():
         lines.append(f"[{section}]")
         for key, spec in keys.items():
             lines.append(f"{key} = {_toml_value(cfg[section][key])}  # {spec[4]}")
