@@ -1,4 +1,4 @@
-"""Identification: rail straightness profiles from measured joint kinematic errors (SPEC §2.5).
+"""Identification: rail straightness profiles from measured joint kinematic errors.
 
 :mod:`.basis` (rail unknowns, gauge, penalty), :mod:`.structure` (table thickness and preload as
 unknowns with priors), :mod:`.weight` (the smoothness weight: marginal likelihood or GCV) →

@@ -6,7 +6,7 @@ Unknown vector ``c`` (µm): the B-spline coefficients of the four profiles, in t
 on the same knot grid ``s₀ + i·h`` that covers exactly the rail length the elements visit,
 ``[x_min + min X_c + min ξ, x_max + max X_c + max ξ]``.
 
-Gauge (SPEC §2.5): joint errors are relative (to ``x_ref``, and each measured channel has its own
+Gauge: joint errors are relative (to ``x_ref``, and each measured channel has its own
 zero), so
 
 - a constant offset of each profile moves the table the same way at every ``x``: invisible

@@ -50,6 +50,8 @@ linearisation: ``converged`` is False with the reason in ``message`` when LM sto
 limit or an equilibrium fails.
 """
 
+import logging
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -65,6 +67,7 @@ from .structure import DETERMINED_RATIO, MachineFamily, StructurePriors
 from .weight import WeightChoice, choose_prior, fixed_weight, project_out
 
 _UM = 1e-6
+_log = logging.getLogger("diffguide")
 #: Knot spacing of the lead-error spline (m), at most; at least 4 coefficients over the stroke.
 LEAD_KNOT_SPACING = 0.1
 #: Ridge on the lead-error coefficients (1/µm): a prior σ of 1 mm, i.e. none in practice.
@@ -428,6 +431,8 @@ def fit_rails(
         return choose_prior(Jt, yp, Om_curv, Om_amp, n_eff, criterion)
 
     x = np.zeros(n_x)
+    _log.info("fit: %d merged values in %d channels, %d rail + %d structural + %d lead "
+              "unknowns; compiling the linearisation", meas.n, n_chan, n_theta, n_q, n_l)
     r, J, pred, ok, Jc = linearise(x)
     if not ok or not np.all(np.isfinite(J)):
         raise ValueError("the machine equilibrium did not converge for straight rails at the "
@@ -449,6 +454,8 @@ def fit_rails(
         x, r, J, pred, Jc, converged, n, message = _levenberg_marquardt(
             x, r, J, pred, Jc, linearise, P, rtol, max_steps)
         steps += n
+        _log.info("fit: pass %d, %d LM steps, chi2 %.4g, lambda %.3g (kappa %g): %s", passes, n,
+                  float(r @ r), choice.lam, choice.kappa, message)
         if passes >= 4:
             break
         redo = False

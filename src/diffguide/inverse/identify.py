@@ -15,8 +15,8 @@ Three views, all on the whitened problem linearised at the solution:
    a sinusoid of wavelength ``λ`` put into that combination comes back (noise-free, linearised)
    as ``R`` applied to it; the transfer ``T(λ)`` is the recovered fraction, the worse of the two
    phases. ``T < ½`` means undetermined: the fit returns the prior's guess there, and the σ
-   band is the prior's. For a *rigid* table on four carriages the blind spots are known (SPEC
-   §2.5): the carriage averages a sinusoid to zero at ``λ = n·p/m``; the two carriages ``l``
+   band is the prior's. For a *rigid* table on four carriages the blind spots are known in
+   closed form: the carriage averages a sinusoid to zero at ``λ = n·p/m``; the two carriages ``l``
    apart cancel in pitch and yaw at ``λ = l/k`` (``sin(πl/λ) = 0``) and in roll at
    ``λ = 2l/(2k+1)`` (``cos(πl/λ) = 0``). The elastic table partly lifts them (the corners see
    single carriages); the table says how much.
@@ -40,7 +40,7 @@ def _combo_profiles(plane, kind):
 
 
 def blind_wavelengths(machine, max_wavelength: float) -> dict:
-    """The rigid-table blind wavelengths (m) up to ``max_wavelength`` (SPEC §2.5)."""
+    """The rigid-table blind wavelengths (m) up to ``max_wavelength``."""
     xi = np.asarray(machine.carriage.xi, float)
     n = len(xi)
     p = (xi[-1] - xi[0]) / max(n - 1, 1)

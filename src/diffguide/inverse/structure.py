@@ -33,6 +33,7 @@ rails' bands).
 """
 
 import dataclasses
+import logging
 from collections.abc import Callable
 
 import equinox as eqx
@@ -47,6 +48,7 @@ MARGIN = 1.15
 #: its prior σ.
 DETERMINED_RATIO = 0.7
 
+_log = logging.getLogger("diffguide")
 NAMES = ("thickness", "preload")
 #: Fields of the condensed table interpolated in thickness.
 INTERPOLATED = ("K", "f", "R", "r0")
@@ -161,9 +163,11 @@ class MachineFamily(eqx.Module):
         nodes = _cheb_nodes(lo, hi, N_NODES)
         tables = []
         for k, u in enumerate(nodes):
+            line = f"condensing the table at thickness {np.exp(u) * 1e3:.1f} mm " \
+                   f"({k + 1}/{len(nodes)})"
+            _log.info(line)
             if progress is not None:
-                progress(f"condensing the table at thickness {np.exp(u) * 1e3:.1f} mm "
-                         f"({k + 1}/{len(nodes)})")
+                progress(line)
             tables.append(make_machine(thickness=float(np.exp(u)), **kw).table)
         stacked = {k: jnp.stack([getattr(t, k) for t in tables]) for k in INTERPOLATED}
         return cls(base, stacked, tuple(float(u) for u in nodes), float(t0), preload0, priors)
