@@ -74,7 +74,7 @@ def test_relative_old_imports_inside_the_package_are_silent(statement):
 
 # --- the core does not know about files, formats, the CLI or plotting ------------------------
 
-CORE = ("_core", "contact", "guideway", "fe", "machine")  # inverse/: being rewritten (lead)
+CORE = ("_core", "contact", "guideway", "fe", "machine", "inverse")
 EDGE = ("diffguide.io", "diffguide.cli", "diffguide.plotting", "diffguide.measurements")
 FORMATS = ("csv", "tomllib", "json", "argparse", "matplotlib")
 #: Imports from the core to the edge inside a function, each a documented convenience.
