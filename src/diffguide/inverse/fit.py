@@ -488,14 +488,13 @@ def fit_rails(
     sigma_scale = float(np.sqrt(max(chi2 / dof, 1.0))) if dof > 0 else 1.0
     cov_x = Hinv * sigma_scale**2
     sigma = np.asarray(meas.sigma)
-    residual = np.where(weights > 0, -r / np.where(weights > 0, weights, 1.0), 0.0) * sigma
     if method == "lm":
         # measured − fitted for every row (outliers included), with the channel zeros
         d = pred - np.asarray(meas.value)
-        off = _channel_offsets(d, sigma, weights, chan, n_chan)
-        residual = -(d - off[chan])
-        offsets = off
-    else:
+        offsets = _channel_offsets(d, sigma, weights, chan, n_chan)
+        residual = -(d - offsets[chan])
+    else:  # the linear method has no outlier pass: every weight is 1
+        residual = -r * sigma
         offsets = np.full(n_chan, np.nan)
     fitted = np.asarray(meas.value) - residual
     theta = x[:n_theta]
