@@ -67,6 +67,10 @@ BAD = [
     ("[screw]\nfree_length_at_ref_mm = 100", "must exceed half the stroke"),
     ('[[ribs]]\naxis = "z"', "key 'ribs[1].axis'"),
     ("[table]\nE_GPa = nan", "must be finite"),
+    ("[fit]\nthickness_prior_mm = [50, 60, 100]", "key 'fit.thickness_prior_mm': needs"),
+    ("[fit]\npreload_prior = [0.08, 0.02]", "key 'fit.preload_prior': must be a list of three"),
+    ('[fit]\nstructure = "guess"', "key 'fit.structure': 'guess' is not allowed"),
+    ("[fit]\nlambda = 3", "key 'fit.lambda' is unknown"),
 ]
 
 
@@ -103,3 +107,37 @@ def test_every_command_has_help_with_units(capsys):
         text = capsys.readouterr().out
         assert "usage: diffguide " + command in text
         assert any(u in text for u in ("mm", "µm", "N", "µrad")), command
+
+
+def test_fit_section_sets_the_structural_priors(tmp_path):
+    """``[fit]`` priors reach the fit; a flag overrides the file; without either, the machine's
+    own values with the documented ranges."""
+    import argparse
+
+    from diffguide.cli.fit import fit_settings, structure_priors
+
+    path = tmp_path / "m.toml"
+    path.write_text(
+        "[table]\nthickness_mm = 60\n[fit]\nthickness_prior_mm = [45, 30, 90]\n"
+        'criterion = "gcv"\n'
+    )
+    cfg = load_config(path)
+    assert "thickness_prior_mm = [45.0, 30.0, 90.0]" in dump_config(cfg)
+    args = argparse.Namespace(structure=None, criterion=None, thickness_prior_mm=None,
+                              preload_prior=None)
+    pri = structure_priors(args, cfg)
+    assert (pri.thickness.value, pri.thickness.lo, pri.thickness.hi) == pytest.approx(
+        (0.045, 0.030, 0.090))
+    p0 = cfg["carriage"]["preload_fraction"]  # not in the file: the machine's, [1/4, 2]x
+    assert (pri.preload.value, pri.preload.lo, pri.preload.hi) == pytest.approx(
+        (p0, p0 / 4, 2 * p0))
+    assert fit_settings(args, cfg) == ("estimate", "gcv")
+    args.thickness_prior_mm, args.criterion = "50,40,70", "ml"
+    pri = structure_priors(args, cfg)
+    assert (pri.thickness.value, pri.thickness.lo, pri.thickness.hi) == pytest.approx(
+        (0.050, 0.040, 0.070))
+    assert fit_settings(args, cfg) == ("estimate", "ml")
+    path.write_text('[fit]\nstructure = "fixed"\n')
+    assert structure_priors(argparse.Namespace(
+        structure=None, criterion=None, thickness_prior_mm=None, preload_prior=None),
+        load_config(path)).active() == ()

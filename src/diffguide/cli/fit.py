@@ -58,19 +58,21 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=int, default=60,
                    help="Levenberg-Marquardt step limit per pass (default 60); when it is reached "
                    "the best estimate so far is written, flagged as not converged (exit 3)")
-    p.add_argument("--criterion", choices=("ml", "gcv"), default="ml",
+    p.add_argument("--criterion", choices=("ml", "gcv"), default=None,
                    help="how the smoothness weight is chosen: marginal likelihood (default) or "
-                   "generalised cross-validation")
-    p.add_argument("--structure", choices=("estimate", "fixed"), default="estimate",
+                   "generalised cross-validation; default: the config's [fit] criterion, else ml")
+    p.add_argument("--structure", choices=("estimate", "fixed"), default=None,
                    help="estimate the table's equivalent thickness and the preload with the rails "
-                   "(default), or hold them at the machine's values")
+                   "(default), or hold them at the machine's values; default: the config's "
+                   "[fit] structure, else estimate")
     p.add_argument("--thickness-prior-mm", metavar="VALUE,LO,HI", default=None,
                    help="prior of the equivalent plate thickness (mm): a value and a plausible "
-                   "range (read as ±2σ of a log-normal prior); default: the machine's thickness "
-                   "and [0.5, 2] times it")
+                   "range (read as ±2σ of a log-normal prior); default: the config's [fit] "
+                   "thickness_prior_mm, else the machine's thickness and [0.5, 2] times it")
     p.add_argument("--preload-prior", metavar="VALUE,LO,HI", default=None,
                    help="prior of the preload (fraction of C), as for the thickness; default: the "
-                   "machine's preload and [0.25, 2] times it")
+                   "config's [fit] preload_prior, else the machine's preload and [0.25, 2] "
+                   "times it")
     p.add_argument("--nx", type=int, default=None, help=argparse.SUPPRESS)  # deprecated: --mesh
     p.add_argument("--ny", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--no-rigid", action="store_true",
@@ -253,18 +255,36 @@ def _parse_prior(text, flag, scale):
     return [x * scale for x in v]
 
 
+def fit_settings(args, cfg) -> tuple[str, str]:
+    """``(structure, criterion)``: the flags, else the configuration's ``[fit]`` section."""
+    fit = cfg.get("fit", {})
+    structure = args.structure or fit.get("structure") or "estimate"
+    criterion = args.criterion or fit.get("criterion") or "ml"
+    return structure, criterion
+
+
 def structure_priors(args, cfg):
-    """The structural priors of ``args`` (defaults from the machine configuration)."""
+    """The structural priors: the flags, else the configuration's ``[fit]`` section, else the
+    machine's own values with the ranges [1/2, 2]× (thickness) and [1/4, 2]× (preload)."""
     from ..inverse import Prior, StructurePriors
 
-    if args.structure == "fixed":
+    if fit_settings(args, cfg)[0] == "fixed":
         return StructurePriors()
+    fit = cfg.get("fit", {})
     t0 = cfg["table"]["thickness_mm"] * 1e-3
     p0 = cfg["carriage"]["preload_fraction"]
-    t = (_parse_prior(args.thickness_prior_mm, "--thickness-prior-mm", 1e-3)
-         if args.thickness_prior_mm else (t0, 0.5 * t0, 2.0 * t0))
-    p = (_parse_prior(args.preload_prior, "--preload-prior", 1.0)
-         if args.preload_prior else (p0, 0.25 * p0, 2.0 * p0))
+    if args.thickness_prior_mm:
+        t = _parse_prior(args.thickness_prior_mm, "--thickness-prior-mm", 1e-3)
+    elif fit.get("thickness_prior_mm") is not None:
+        t = [v * 1e-3 for v in fit["thickness_prior_mm"]]
+    else:
+        t = (t0, 0.5 * t0, 2.0 * t0)
+    if args.preload_prior:
+        p = _parse_prior(args.preload_prior, "--preload-prior", 1.0)
+    elif fit.get("preload_prior") is not None:
+        p = list(fit["preload_prior"])
+    else:
+        p = (p0, 0.25 * p0, 2.0 * p0)
     return StructurePriors(Prior(*t), Prior(*p))
 
 
@@ -340,7 +360,7 @@ def run(args) -> int:
         t = time.perf_counter()
         _say(args, f"{'rigid-table' if label else 'elastic'} fit: compiling and solving ...")
         fits[label] = fit_rails(m, meas, knot_spacing=spacing, lam=args.lam,
-                                criterion=args.criterion, max_steps=args.max_steps,
+                                criterion=fit_settings(args, cfg)[1], max_steps=args.max_steps,
                                 method="linear" if label else "lm")
         seconds[label] = time.perf_counter() - t
         f = fits[label]

@@ -214,6 +214,42 @@ RIB_KEYS: dict[str, tuple] = {
 #: The default rib of a ``[[ribs]]`` table, user units.
 _RIB_DEFAULTS = {"axis": "x", "position_mm": 0.0, "width_mm": 20.0, "depth_mm": 60.0}
 
+#: The ``[fit]`` section: how ``diffguide fit`` treats what nobody knows about the machine. Not
+#: part of the machine (no spec path); ``{key: (default, kind, low, high, help)}`` as
+#: :func:`schema`. A ``"prior"`` is ``[value, lo, hi]`` with ``0 < lo <= value <= hi``, read as
+#: a value and ±2σ of a log-normal prior; ``None`` (the default) means the machine's own value
+#: with the range ``[value/2, 2·value]`` (thickness) or ``[value/4, 2·value]`` (preload).
+FIT_SCHEMA: dict[str, tuple] = {
+    "structure": (
+        "estimate",
+        "str:estimate|fixed",
+        None,
+        None,
+        "estimate the table thickness and the preload with the rails, or hold them fixed",
+    ),
+    "thickness_prior_mm": (
+        None,
+        "prior",
+        0.1,
+        5000.0,
+        "equivalent plate thickness prior [value, lo, hi] (mm)",
+    ),
+    "preload_prior": (
+        None,
+        "prior",
+        1e-5,
+        0.9,
+        "preload prior [value, lo, hi] as fractions of C",
+    ),
+    "criterion": (
+        "ml",
+        "str:ml|gcv",
+        None,
+        None,
+        "regularisation weight: marginal likelihood (ml) or generalised cross-validation (gcv)",
+    ),
+}
+
 
 def _get(obj, path: str):
     for name in path.split("."):
@@ -248,6 +284,7 @@ def config_from_spec(spec) -> dict:
     cfg["ribs"] = [
         {key: _user(_get(rib, k[0]), k[1]) for key, k in RIB_KEYS.items()} for rib in spec.ribs
     ]
+    cfg["fit"] = {key: v[0] for key, v in FIT_SCHEMA.items()}
     return cfg
 
 
@@ -368,6 +405,19 @@ def _check(value, spec, where):
                     f"{where}: {v:g} outside the allowed range [{lo:g}, {hi:g}] ({help_})"
                 )
         return out
+    if kind == "prior":
+        if not isinstance(value, (list, tuple)) or len(value) != 3:
+            raise ValueError(
+                f"{where}: must be a list of three numbers [value, lo, hi] ({help_}), "
+                f"got {value!r}"
+            )
+        v, a, b = (_number(x, where, "each entry") for x in value)
+        if not (lo <= a <= v <= b <= hi):
+            raise ValueError(
+                f"{where}: needs {lo:g} <= lo <= value <= hi <= {hi:g}, got "
+                f"[{v:g}, {a:g}, {b:g}] ({help_})"
+            )
+        return (v, a, b)
     raise AssertionError(kind)
 
 
@@ -401,6 +451,16 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
                     )
                 cfg["ribs"].append(out)
             continue
+        if section == "fit":
+            if not isinstance(body, dict):
+                raise ValueError(f"{where}: must be a table of keys")
+            for key, value in body.items():
+                if key not in FIT_SCHEMA:
+                    raise ValueError(
+                        f"{source}: key 'fit.{key}' is unknown; allowed: {', '.join(FIT_SCHEMA)}"
+                    )
+                cfg["fit"][key] = _check(value, FIT_SCHEMA[key], f"{source}: key 'fit.{key}'")
+            continue
         if section == "points":
             if not isinstance(body, dict) or not body:
                 raise ValueError(f"{where}: must be a table of name = [x_mm, y_mm] entries")
@@ -411,7 +471,8 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
             continue
         if section not in schema():
             raise ValueError(
-                f"{where}: unknown section; allowed: {', '.join([*schema(), 'points', 'ribs'])}"
+                f"{where}: unknown section; allowed: "
+                f"{', '.join([*schema(), 'points', 'ribs', 'fit'])}"
             )
         if not isinstance(body, dict):
             raise ValueError(f"{where}: must be a table of keys")
@@ -521,4 +582,13 @@ def dump_config(cfg: dict, title: str = "") -> str:
     for rib in cfg["ribs"]:
         lines.append("[[ribs]]")
         lines += [f"{k} = {_toml_value(rib[k])}  # {spec[4]}" for k, spec in RIB_SCHEMA.items()]
+    lines.append("")
+    lines.append("[fit]  # what 'diffguide fit' estimates; a prior is [value, lo, hi]")
+    fit = cfg.get("fit", {})
+    for k, spec in FIT_SCHEMA.items():
+        v = fit.get(k, spec[0])
+        if v is None:  # a prior left to the machine's value: shown commented out
+            lines.append(f"# {k} = [value, lo, hi]  # {spec[4]}; default: the machine's value")
+        else:
+            lines.append(f"{k} = {_toml_value(v)}  # {spec[4]}")
     return "\n".join(lines) + "\n"
