@@ -47,6 +47,7 @@ _LAZY = {
     "static_characteristics": ".guideway",
     "fit_rails": ".inverse",
     "identifiability": ".inverse",
+    "plan": ".inverse.plan",
     "default_config": ".io",
     "load_config": ".io",
     "read_rails_csv": ".io",

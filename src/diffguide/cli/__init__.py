@@ -30,6 +30,7 @@ _COMMANDS = {
     "import": "import_",
     "fit": "fit",
     "montecarlo": "montecarlo",
+    "plan": "plan",
 }
 
 
