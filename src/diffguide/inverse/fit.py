@@ -27,23 +27,37 @@ merged values rejected as outliers, below). The fit minimises
 .. math::  ‖r(x)‖² + λθᵀΩθ + ‖q‖² + ε²‖ℓ‖²,\qquad
            θᵀΩθ = Σ∫e''² ds + κ ℓ_r⁻⁴Σ∫e² ds
 
-(``ε`` = 1e-3 µm⁻¹ keeps the lead term proper; λ and κ chosen by the data, :mod:`.weight`) by
-Levenberg–Marquardt (:func:`_levenberg_marquardt`: one compiled linearisation — residual and
-``jacfwd`` Jacobian through the implicit equilibria — per step, the damped normal equations
-solved in NumPy), started from the Gauss–Newton step at ``x = 0``. λ is chosen on the problem
-linearised at the current estimate (:mod:`.weight`: marginal likelihood by default, GCV on
-request, or given), with the structural and lead unknowns projected out, then re-chosen at the
-solution and the fit repeated once if it moved by more than a factor 1.5.
+(``ε`` = 1e-3 µm⁻¹ keeps the lead term proper; λ and κ chosen by the data, :mod:`.weight`).
+
+**The structure by marginal likelihood** (:mod:`.marginal`). ``q`` is not taken from the joint
+minimum of that objective — the joint mode of a scale-like parameter under a shrinkage prior is
+biased (a structure that makes the data more sensitive to the rails lets smaller rails explain
+them) — but from the marginal likelihood, with the rails integrated out under their prior:
+``q̂ = argmin −2 log p(y | q) + ‖q‖²``, Newton steps on central differences of the problem
+linearised in the rails (first at straight rails, then again at the fitted rails). At ``q̂`` the
+rails and lead minimise the objective above by Levenberg–Marquardt (:func:`_levenberg_marquardt`:
+one compiled linearisation — residual and ``jacfwd`` Jacobian through the implicit equilibria —
+per step, the damped normal equations solved in NumPy), started from the Gauss–Newton step. λ
+is chosen on the problem linearised at the current estimate (:mod:`.weight`: marginal likelihood
+by default, GCV on request, or given), with the lead unknowns projected out, then re-chosen at
+the solution and the fit repeated once if it moved by more than a factor 1.5.
 
 **Outliers.** Gross outliers among the readings are set aside when merging
 (:mod:`diffguide.measurements`); a merged value whose standardised residual still exceeds
 :data:`OUTLIER_Z` after the fit is given zero weight and the fit repeated once (reported).
 
-**Uncertainty.** Gauss–Newton posterior ``Cov x = s²(JᵀJ + P)⁻¹``, ``P = diag(λΩ, I, ε²I)``,
-jointly over rails, structure and lead: the rails' bands include the structure's uncertainty.
-``s² = max(1, χ²/dof)``: when the model does not explain the data to their stated σ, the bands
-widen accordingly (never narrow). ``χ²/dof = ‖r‖² / (N − n_channels − tr R)``,
-``R = (JᵀJ + P)⁻¹JᵀJ``, ``0 ≤ tr R ≤ rank J``.
+**Uncertainty.** The rails and lead given the structure: the Gauss–Newton posterior
+``s²H_c⁻¹``, ``H_c = J_cᵀJ_c + P_c``, ``P_c = diag(λΩ, ε²I)``; the structure's own posterior
+``Cov q`` (the Laplace approximation of the marginal likelihood, :mod:`.marginal`) carried into
+them by the delta method,
+
+.. math::  \mathrm{Cov}\,c = s²H_c⁻¹ + G\,\mathrm{Cov}\,q\,Gᵀ,\qquad
+           G = ∂ĉ/∂q = -H_c⁻¹J_cᵀJ_q,
+
+so the rails' bands include the structure's uncertainty and widen where the structure is not
+determined. ``s² = max(1, χ²/dof)``: when the model does not explain the data to their stated σ,
+the bands widen accordingly (never narrow). ``χ²/dof = ‖r‖² / (N − n_channels − edf)``,
+``edf = tr(H_c⁻¹J_cᵀJ_c) + tr(I − Cov q)``.
 
 **Always an answer.** The fit returns its best estimate whatever happens after the first
 linearisation: ``converged`` is False with the reason in ``message`` when LM stops on its step
@@ -63,6 +77,7 @@ from ..machine.equilibrium import Machine
 from ..machine.kinematics import joint_errors
 from .basis import RailBasis, null_space_basis
 from .data import QUANTITIES, Measurements
+from .marginal import marginal_score, maximise_marginal
 from .structure import DETERMINED_RATIO, MachineFamily, StructurePriors
 from .weight import WeightChoice, choose_prior, fixed_weight, project_out
 
@@ -75,6 +90,9 @@ LEAD_RIDGE = 1e-3
 #: Standardised residual beyond which a merged value is an outlier.
 OUTLIER_Z = 5.0
 _EXX, _EYX = QUANTITIES.index("EXX"), QUANTITIES.index("EYX")
+#: What a failed equilibrium raises inside the compiled model (equinox's runtime checks under
+#: ``EQX_ON_ERROR=raise``, the default outside the CLI; XLA's runtime error).
+_RUNTIME_ERRORS = (eqx.EquinoxRuntimeError, jax.errors.JaxRuntimeError)
 _EAX, _EBX = QUANTITIES.index("EAX"), QUANTITIES.index("EBX")
 
 
@@ -408,7 +426,12 @@ def fit_rails(
     M[basis.size:, n_theta:] = np.eye(n_q + n_l)
 
     def linearise(x_):
-        r_, Jv, pred_, ok_ = (np.asarray(a) for a in _linearise(jnp.asarray(M @ x_), prob))
+        try:
+            r_, Jv, pred_, ok_ = (np.asarray(a) for a in _linearise(jnp.asarray(M @ x_), prob))
+        except _RUNTIME_ERRORS as exc:  # an equilibrium's check raised (EQX_ON_ERROR=raise):
+            _log.info("fit: the model failed at a trial point (%s)", type(exc).__name__)
+            nan = np.full(meas.n, np.nan)  # the trial point is rejected like a non-converged one
+            return nan, np.full((meas.n, n_x), np.nan), nan, False, None
         return r_, Jv @ M, pred_, ok_, Jv[:, :basis.size]
     if meas.n - n_chan - n_l <= 0:
         raise ValueError(f"{meas.n} measurements in {n_chan} channels: nothing to fit")
@@ -423,8 +446,10 @@ def fit_rails(
     def choose(J, r, x, weights):
         """λ on the problem linearised at ``x`` (nuisance columns projected out)."""
         used = int(np.sum(weights > 0))
-        y = -(r - J @ x)  # the data in the total unknown: r(x + δ) ≈ r − Jx + J(x + δ)
-        Jt, yp, rank_f = project_out(J[:, n_theta:], J[:, :n_theta], y)
+        # the data in the rail and lead unknowns at the structure in x:
+        # r(x + δ) ≈ r − J_c x_c + J_c(x_c + δ_c)
+        y = -(r - J[:, ic] @ x[ic])
+        Jt, yp, rank_f = project_out(J[:, n_theta + n_q:], J[:, :n_theta], y)
         n_eff = used - n_chan - rank_f
         if lam is not None:
             return fixed_weight(lam, Jt, yp, Om_curv + Om_amp, n_eff)
@@ -438,29 +463,74 @@ def fit_rails(
         raise ValueError("the machine equilibrium did not converge for straight rails at the "
                          "prior structure; check the machine configuration")
     weights = np.ones(meas.n)
+    iq = np.arange(n_theta, n_theta + n_q)  # structure columns
+    ic = np.setdiff1d(np.arange(n_x), iq)  # rails and lead: solved by LM at a given structure
+    q_bounds = family.bounds() / family.prior_sigma()[:, None] if n_q else np.zeros((0, 2))
+    cov_q = np.eye(n_q)
+    q_info: dict = {}
+
+    def structure_stage(x, r, J, weights):
+        """The structure by marginal likelihood at the current rails (see the module
+        docstring); returns ``x`` with ``q`` replaced, ``Cov q`` and a note."""
+        used = int(np.sum(weights > 0))
+
+        def score(q):
+            xq = x.copy()
+            xq[iq] = q
+            r_q, J_q, _, ok_q, _ = linearise(xq)
+            if not ok_q or not np.all(np.isfinite(J_q)):
+                return np.inf
+            y = -(r_q - J_q[:, ic] @ x[ic])  # data in the total rail and lead unknowns
+            Jt, yp, rank_f = project_out(J_q[:, n_theta + n_q:], J_q[:, :n_theta], y)
+            return marginal_score(Jt, yp, Om_curv, Om_amp, used - n_chan - rank_f, lam) \
+                + float(q @ q)
+
+        q, cov, note = maximise_marginal(score, x[iq], q_bounds)
+        out = x.copy()
+        out[iq] = q
+        return out, cov, note
+
+    if n_q:
+        _log.info("fit: the structure by marginal likelihood (linearised at straight rails)")
+        x, cov_q, q_info = structure_stage(x, r, J, weights)
+        r, J, pred, ok, Jc = linearise(x)
     choice = choose(J, r, x, weights)
     P = penalty(choice)
-    x = np.linalg.solve(_spd(J.T @ J + P), -(J.T @ r))  # Gauss–Newton start
+    Pc = P[np.ix_(ic, ic)]
+
+    def linearise_c(xc):
+        xf = x.copy()
+        xf[ic] = xc
+        r_, J_, pred_, ok_, Jc_ = linearise(xf)
+        return r_, (J_[:, ic] if J_ is not None else None), pred_, ok_, Jc_
+
+    def gn_start(r, J):
+        Jc_ = J[:, ic]
+        return x[ic] + np.linalg.solve(_spd(Jc_.T @ Jc_ + Pc), -(Jc_.T @ r + Pc @ x[ic]))
+
+    x[ic] = gn_start(r, J)  # Gauss–Newton start
     steps, converged, message = 0, True, "converged"
     outliers = np.zeros(0, int)
     passes = 0
     if method == "lm":
         r, J, pred, ok, Jc = linearise(x)
         if not (bool(ok) and np.all(np.isfinite(J))):  # GN start too far: start from zero
-            x = np.zeros(n_x)
+            x[ic] = 0.0
             r, J, pred, ok, Jc = linearise(x)
     while method == "lm":
         passes += 1
-        x, r, J, pred, Jc, converged, n, message = _levenberg_marquardt(
-            x, r, J, pred, Jc, linearise, P, rtol, max_steps)
+        xc, r, Jsub, pred, Jc, converged, n, message = _levenberg_marquardt(
+            x[ic], r, J[:, ic], pred, Jc, linearise_c, Pc, rtol, max_steps)
+        x[ic] = xc
         steps += n
+        r, J, pred, ok, Jc = linearise(x)
         _log.info("fit: pass %d, %d LM steps, chi2 %.4g, lambda %.3g (kappa %g): %s", passes, n,
                   float(r @ r), choice.lam, choice.kappa, message)
         if passes >= 4:
             break
         redo = False
         if reject_outliers and passes <= 2:
-            scale = np.sqrt(max(_chi2_dof(J, r, P, weights, n_chan), 1.0))
+            scale = np.sqrt(max(_chi2_dof(J[:, ic], r, Pc, weights, n_chan), 1.0))
             bad = np.flatnonzero((weights > 0) & (np.abs(r) > OUTLIER_Z * scale))
             if bad.size and bad.size <= 0.05 * meas.n:
                 weights[bad] = 0.0
@@ -468,25 +538,40 @@ def fit_rails(
                 prob = eqx.tree_at(lambda p: p.weight, prob, jnp.asarray(weights))
                 r, J, pred, _, Jc = linearise(x)
                 redo = True
+        if n_q and (redo or passes == 1):  # the structure again, at the fitted rails
+            q_old = x[iq].copy()
+            x, cov_q, q_info = structure_stage(x, r, J, weights)
+            if np.max(np.abs(x[iq] - q_old)) > 0.1:
+                redo = True
+            r, J, pred, ok, Jc = linearise(x)
         if lam is None:
             new = choose(J, r, x, weights)
             if abs(np.log(new.lam / choice.lam)) >= np.log(1.5):
                 redo = True
             choice = new
             P = penalty(choice)
+            Pc = P[np.ix_(ic, ic)]
         if not redo:
             break
     if method == "linear":  # residuals of the linear model at the solution
-        r = r + J @ x
-    H = _spd(J.T @ J + P)
-    Hinv = np.linalg.inv(H)
-    Hinv = 0.5 * (Hinv + Hinv.T)
-    edf = float(np.trace(Hinv @ (J.T @ J)))
+        r = r + J[:, ic] @ x[ic]
+    # the rails and lead given the structure, then the structure's uncertainty carried in:
+    # Cov c = s²H_c⁻¹ + G Cov q Gᵀ, G = ∂ĉ/∂q = −H_c⁻¹J_cᵀJ_q (the delta method)
+    Jcc, Jq = J[:, ic], J[:, iq]
+    Hc = _spd(Jcc.T @ Jcc + Pc)
+    Hc_inv = np.linalg.inv(Hc)
+    Hc_inv = 0.5 * (Hc_inv + Hc_inv.T)
+    G = -Hc_inv @ (Jcc.T @ Jq)
+    edf = float(np.trace(Hc_inv @ (Jcc.T @ Jcc))) + float(np.trace(np.eye(n_q) - cov_q))
     chi2 = float(r @ r)
     used = int(np.sum(weights > 0))
     dof = float(used - n_chan - edf)
     sigma_scale = float(np.sqrt(max(chi2 / dof, 1.0))) if dof > 0 else 1.0
-    cov_x = Hinv * sigma_scale**2
+    cov_x = np.zeros((n_x, n_x))
+    cov_x[np.ix_(ic, ic)] = sigma_scale**2 * Hc_inv + G @ cov_q @ G.T
+    cov_x[np.ix_(ic, iq)] = G @ cov_q
+    cov_x[np.ix_(iq, ic)] = (G @ cov_q).T
+    cov_x[np.ix_(iq, iq)] = cov_q
     sigma = np.asarray(meas.sigma)
     if method == "lm":
         # measured − fitted for every row (outliers included), with the channel zeros
@@ -500,8 +585,9 @@ def fit_rails(
     theta = x[:n_theta]
     c_um = Z @ theta
     cov = Z @ cov_x[:n_theta, :n_theta] @ Z.T * _UM**2
-    structure = _structure_report(family, x[n_theta:n_theta + n_q],
-                                  cov_x[n_theta:n_theta + n_q, n_theta:n_theta + n_q])
+    structure = _structure_report(family, x[iq], cov_q, q_info.get("at_bound", [False] * n_q))
+    if q_info and q_info["message"] != "converged":
+        message += f"; structure: {q_info['message']}"
     for name, v in structure.items():
         if v["at_bound"]:
             message += (f"; the {name} estimate sits on the edge of its range "
@@ -536,7 +622,7 @@ def _chi2_dof(J, r, P, weights, n_chan):
     return float(r @ r / dof) if dof > 0 else 1.0
 
 
-def _structure_report(family: MachineFamily, q, cov_q) -> dict:
+def _structure_report(family: MachineFamily, q, cov_q, at_bound) -> dict:
     out = {}
     prior_sig = family.prior_sigma()
     values = family.values(q * prior_sig)
@@ -552,7 +638,7 @@ def _structure_report(family: MachineFamily, q, cov_q) -> dict:
             "prior_value": pr.value,
             "prior_range": [pr.lo, pr.hi],
             "prior_sigma_log": float(prior_sig[i]),
-            "at_bound": bool(u <= lo + 1e-6 or u >= hi - 1e-6),
+            "at_bound": bool(at_bound[i] or u <= lo + 1e-6 or u >= hi - 1e-6),
         }
         # at the edge of the interpolation range the model is flat in the parameter: its σ
         # there says nothing, so the parameter is not determined
