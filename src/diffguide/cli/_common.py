@@ -28,6 +28,8 @@ exit status:
 MESH_COMMANDS = ("table", "simulate", "fit", "montecarlo")
 
 DEFAULT_CACHE_DIR = Path("~/.cache/diffguide/jax")
+#: condensed tables (:mod:`diffguide.fe.cache`) live in this sub-folder of the cache folder
+TABLE_SUBDIR = "tables"
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -127,10 +129,15 @@ def add_common_arguments(p: argparse.ArgumentParser, name: str) -> None:
         "--cache-dir",
         metavar="DIR",
         default=None,
-        help="persistent JAX compilation cache: a second run of the same command compiles "
-        "almost nothing (default: $DIFFGUIDE_CACHE_DIR, else ~/.cache/diffguide/jax)",
+        help="persistent JAX compilation cache, and condensed tables in its 'tables' "
+        "sub-folder: a second run of the same command compiles almost nothing and condenses "
+        "nothing (default: $DIFFGUIDE_CACHE_DIR, else ~/.cache/diffguide/jax)",
     )
-    g.add_argument("--no-cache", action="store_true", help="do not use the compilation cache")
+    g.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="use neither the compilation cache nor the cache of condensed tables",
+    )
 
 
 def normalise_mesh(args, name: str) -> None:
@@ -176,8 +183,9 @@ def prepare_runtime(args) -> None:
       callbacks, which JAX refuses to store in the persistent cache, so without it a second run
       recompiles everything. The consequence: a check that fails inside compiled code gives NaN
       instead of an exception, and the solvers report NaN as non-convergence (exit 3).
-    - the persistent compilation cache (:func:`cache_dir`), when this process starts JAX itself
-      or the user named a folder explicitly.
+    - the persistent compilation cache (:func:`cache_dir`; every compilation is stored), when
+      this process starts JAX itself or the user named a folder explicitly, and the cache of
+      condensed tables in its sub-folder :data:`TABLE_SUBDIR` (:mod:`diffguide.fe.cache`).
     - float64 (micrometres on metre-scale geometry need it).
     """
     from .._core.stack import check_stack
@@ -199,6 +207,17 @@ def prepare_runtime(args) -> None:
             warnings.warn(f"compilation cache disabled: {exc}", stacklevel=2)
         else:
             jax.config.update("jax_compilation_cache_dir", str(folder))
+            # every compilation, not only those over JAX's default 1 s: a run compiles dozens
+            # of small functions whose compilations add up to seconds
+            jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+            jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+            from ..fe.cache import set_table_cache_dir
+
+            set_table_cache_dir(folder / TABLE_SUBDIR)
+    if folder is None:  # --no-cache (an earlier in-process run may have set a folder)
+        from ..fe.cache import set_table_cache_dir
+
+        set_table_cache_dir(None)
     from .._core.precision import enable_x64
 
     enable_x64()

@@ -37,6 +37,7 @@ import numpy as np
 from .._precision import require_x64
 from .._types import Array, Float, ScalarLike
 from . import banded
+from . import cache as table_cache
 from .assemble import PlateSection, _element_arrays, as_arrays
 from .mesh import TableMesh
 from .shell import shell_frame, shell_natural_coords, shell_shape
@@ -220,6 +221,57 @@ def condense(
     """
     require_x64("diffguide.fe.condense")
     owner, block, n_free, quads = _topology(mesh, patches, points)
+    key = None
+    if table_cache.table_cache_dir() is not None:  # a disk cache of tables (.cache)
+        key = table_cache.table_key(
+            "condense",
+            mesh,
+            plate,
+            tuple(patches),
+            np.asarray(points, dtype=float),
+            nodes,
+            ref_xy,
+            gravity,
+            surface_load,
+            method,
+        )
+        cached = table_cache.load(key)
+        if cached is not None:
+            return cached
+    table = _condense_checked(
+        mesh,
+        plate,
+        owner,
+        block,
+        n_free,
+        quads,
+        patches,
+        points,
+        nodes,
+        ref_xy,
+        gravity,
+        surface_load,
+        method,
+    )
+    table_cache.store(key, table)
+    return table
+
+
+def _condense_checked(
+    mesh,
+    plate,
+    owner,
+    block,
+    n_free,
+    quads,
+    patches,
+    points,
+    nodes,
+    ref_xy,
+    gravity,
+    surface_load,
+    method,
+):
     mesh, plate, gravity = as_arrays((mesh, plate, gravity))
     sl = jnp.zeros(3) if surface_load is None else jnp.asarray(surface_load, dtype=float)
     pxyz = np.array([[p.x, p.y, np.nan if p.z is None else p.z] for p in patches])
