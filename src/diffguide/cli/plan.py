@@ -7,8 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-QUANTITY_CHOICES = {"level": ("EBX", "EAX"), "interferometer": ("EBX", "ECX"),
-                    "straightness": ("EYX", "EZX")}
+QUANTITY_CHOICES = {
+    "level": ("EBX", "EAX"),
+    "interferometer": ("EBX", "ECX"),
+    "straightness": ("EYX", "EZX"),
+}
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -29,54 +32,119 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "interferometer or straightness), or 'bundled' (levels at the four corners 50 mm "
         "inside the edges, an interferometer at the centre).",
     )
-    p.add_argument("--preset", default="majda2012", choices=("majda2012",),
-                   help="machine model (majda2012: 1000 x 500 mm table)")
-    p.add_argument("--config", metavar="MACHINE.toml",
-                   help="machine configuration file (TOML); overrides --preset")
+    p.add_argument(
+        "--preset",
+        default="majda2012",
+        choices=("majda2012",),
+        help="machine model (majda2012: 1000 x 500 mm table)",
+    )
+    p.add_argument(
+        "--config",
+        metavar="MACHINE.toml",
+        help="machine configuration file (TOML); overrides --preset",
+    )
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (replaced)")
-    for kind, n, sig, unit in (("level", 4, 4.0, "urad"), ("interferometer", 1, 2.0, "urad"),
-                               ("straightness", 0, 1.0, "um")):
-        flag = "interferometers" if kind == "interferometer" else (
-            "levels" if kind == "level" else "straightness")
-        p.add_argument(f"--{flag}", type=int, default=n, metavar="N",
-                       help=f"{kind}s available (default {n})")
-        p.add_argument(f"--{kind}-sigma-{unit}", type=float, default=sig, metavar="SIGMA",
-                       help=f"σ of one {kind} reading ({'µm/m' if unit == 'urad' else 'µm'}; "
-                       f"default {sig:g})")
-        p.add_argument(f"--{kind}-reads", default=",".join(QUANTITY_CHOICES[kind]),
-                       metavar="Q[,Q]",
-                       help=f"what one {kind} reads, among {','.join(QUANTITY_CHOICES[kind])} "
-                       f"(default both)")
+    for kind, n, sig, unit in (
+        ("level", 4, 4.0, "urad"),
+        ("interferometer", 1, 2.0, "urad"),
+        ("straightness", 0, 1.0, "um"),
+    ):
+        flag = (
+            "interferometers"
+            if kind == "interferometer"
+            else ("levels" if kind == "level" else "straightness")
+        )
+        p.add_argument(
+            f"--{flag}", type=int, default=n, metavar="N", help=f"{kind}s available (default {n})"
+        )
+        p.add_argument(
+            f"--{kind}-sigma-{unit}",
+            type=float,
+            default=sig,
+            metavar="SIGMA",
+            help=f"σ of one {kind} reading ({'µm/m' if unit == 'urad' else 'µm'}; default {sig:g})",
+        )
+        p.add_argument(
+            f"--{kind}-reads",
+            default=",".join(QUANTITY_CHOICES[kind]),
+            metavar="Q[,Q]",
+            help=f"what one {kind} reads, among {','.join(QUANTITY_CHOICES[kind])} (default both)",
+        )
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--grid", default="7x3", metavar="NXxNY",
-                   help="candidate sites: an NX x NY grid over the table top, 50 mm inside the "
-                   "edges (default 7x3)")
+    g.add_argument(
+        "--grid",
+        default="7x3",
+        metavar="NXxNY",
+        help="candidate sites: an NX x NY grid over the table top, 50 mm inside the "
+        "edges (default 7x3)",
+    )
     g.add_argument("--sites", metavar="SITES.csv", help="candidate sites: name,x_mm,y_mm")
-    p.add_argument("--compare", metavar="PLAN.csv|bundled", default="bundled",
-                   help="a plan to compare with (default: bundled); 'none' for no comparison")
-    p.add_argument("--positions", type=int, default=36, metavar="N",
-                   help="table positions read, evenly over the stroke (default 36)")
+    p.add_argument(
+        "--compare",
+        metavar="PLAN.csv|bundled",
+        default="bundled",
+        help="a plan to compare with (default: bundled); 'none' for no comparison",
+    )
+    p.add_argument(
+        "--positions",
+        type=int,
+        default=36,
+        metavar="N",
+        help="table positions read, evenly over the stroke (default 36)",
+    )
     p.add_argument("--runs", type=int, default=5, help="runs per direction (default 5)")
-    p.add_argument("--unidirectional", action="store_true",
-                   help="forward runs only (default: forward and backward)")
-    p.add_argument("--rail-rms-um", type=float, default=1.0,
-                   help="expected RMS of the rail profiles (µm; default 1): sets the prior")
-    p.add_argument("--criterion", choices=("worst", "A", "D", "work"), default="worst",
-                   help="worst: largest profile σ (default); A: RMS profile σ; D: log det of "
-                   "the posterior covariance; work: largest σ of the errors at --work-point")
-    p.add_argument("--work-point", metavar="X,Y", default=None,
-                   help="work point (mm) for --criterion work")
-    p.add_argument("--work-reads", default="EAX,EBX,ECX", metavar="Q[,Q]",
-                   help="errors predicted at the work point (default EAX,EBX,ECX)")
-    p.add_argument("--structure", choices=("estimate", "fixed"), default=None,
-                   help="table thickness and preload unknown, as 'diffguide fit' estimates them "
-                   "(default, or the configuration's [fit] section), or known")
-    p.add_argument("--thickness-prior-mm", metavar="VALUE,LO,HI", default=None,
-                   help="as 'diffguide fit' (default: the machine's, [0.5, 2] times it)")
-    p.add_argument("--preload-prior", metavar="VALUE,LO,HI", default=None,
-                   help="as 'diffguide fit' (default: the machine's, [0.25, 2] times it)")
-    p.add_argument("--draws", type=int, default=8,
-                   help="prior rail draws at which the experiment is linearised (default 8)")
+    p.add_argument(
+        "--unidirectional",
+        action="store_true",
+        help="forward runs only (default: forward and backward)",
+    )
+    p.add_argument(
+        "--rail-rms-um",
+        type=float,
+        default=1.0,
+        help="expected RMS of the rail profiles (µm; default 1): sets the prior",
+    )
+    p.add_argument(
+        "--criterion",
+        choices=("worst", "A", "D", "work"),
+        default="worst",
+        help="worst: largest profile σ (default); A: RMS profile σ; D: log det of "
+        "the posterior covariance; work: largest σ of the errors at --work-point",
+    )
+    p.add_argument(
+        "--work-point", metavar="X,Y", default=None, help="work point (mm) for --criterion work"
+    )
+    p.add_argument(
+        "--work-reads",
+        default="EAX,EBX,ECX",
+        metavar="Q[,Q]",
+        help="errors predicted at the work point (default EAX,EBX,ECX)",
+    )
+    p.add_argument(
+        "--structure",
+        choices=("estimate", "fixed"),
+        default=None,
+        help="table thickness and preload unknown, as 'diffguide fit' estimates them "
+        "(default, or the configuration's [fit] section), or known",
+    )
+    p.add_argument(
+        "--thickness-prior-mm",
+        metavar="VALUE,LO,HI",
+        default=None,
+        help="as 'diffguide fit' (default: the machine's, [0.5, 2] times it)",
+    )
+    p.add_argument(
+        "--preload-prior",
+        metavar="VALUE,LO,HI",
+        default=None,
+        help="as 'diffguide fit' (default: the machine's, [0.25, 2] times it)",
+    )
+    p.add_argument(
+        "--draws",
+        type=int,
+        default=8,
+        help="prior rail draws at which the experiment is linearised (default 8)",
+    )
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
@@ -97,15 +165,20 @@ def _read_csv(path, columns):
         text = Path(path).read_text(encoding="utf-8")
     except OSError as exc:
         raise ValueError(f"{path}: cannot read ({exc.strerror})") from None
-    lines = [(k + 1, ln) for k, ln in enumerate(text.splitlines())
-             if ln.strip() and not ln.lstrip().startswith("#")]
+    lines = [
+        (k + 1, ln)
+        for k, ln in enumerate(text.splitlines())
+        if ln.strip() and not ln.lstrip().startswith("#")
+    ]
     if not lines:
         raise ValueError(f"{path}: empty")
     header = [h.strip() for h in next(csv.reader([lines[0][1]]))]
     missing = [c for c in columns if c not in header]
     if missing:
-        raise ValueError(f"{path}:{lines[0][0]}: missing column(s) {', '.join(missing)} "
-                         f"(need {','.join(columns)})")
+        raise ValueError(
+            f"{path}:{lines[0][0]}: missing column(s) {', '.join(missing)} "
+            f"(need {','.join(columns)})"
+        )
     rows = []
     for line, text in lines[1:]:
         vals = [v.strip() for v in next(csv.reader([text]))]
@@ -130,8 +203,10 @@ def _number(path, line, row, key):
 def _on_table(name, x, y, cfg, where):
     half_l, half_w = cfg["table"]["length_mm"] / 2, cfg["table"]["width_mm"] / 2
     if abs(x) > half_l or abs(y) > half_w:
-        raise ValueError(f"{where}: site {name!r} at ({x:g}, {y:g}) mm is off the table "
-                         f"(|x| <= {half_l:g}, |y| <= {half_w:g} mm)")
+        raise ValueError(
+            f"{where}: site {name!r} at ({x:g}, {y:g}) mm is off the table "
+            f"(|x| <= {half_l:g}, |y| <= {half_w:g} mm)"
+        )
 
 
 def _sites(args, cfg) -> dict:
@@ -144,20 +219,21 @@ def _sites(args, cfg) -> dict:
             x, y = (_number(args.sites, line, row, k) for k in ("x_mm", "y_mm"))
             name = row["name"]
             if not name or name in out:
-                raise ValueError(f"{args.sites}:{line}: site names must be unique and "
-                                 f"non-empty, got {name!r}")
+                raise ValueError(
+                    f"{args.sites}:{line}: site names must be unique and non-empty, got {name!r}"
+                )
             _on_table(name, x, y, cfg, f"{args.sites}:{line}")
             out[name] = (x * 1e-3, y * 1e-3)
         return out
     try:
         nx, ny = parse_mesh_text(args.grid)
     except ValueError:
-        raise ValueError(f"--grid must be NXxNY with integers >= 1, e.g. 7x3, got "
-                         f"{args.grid!r}") from None
+        raise ValueError(
+            f"--grid must be NXxNY with integers >= 1, e.g. 7x3, got {args.grid!r}"
+        ) from None
     if nx * ny > 400:
         raise ValueError(f"--grid {args.grid}: at most 400 sites")
-    return grid_sites(cfg["table"]["length_mm"] * 1e-3, cfg["table"]["width_mm"] * 1e-3,
-                      nx, ny)
+    return grid_sites(cfg["table"]["length_mm"] * 1e-3, cfg["table"]["width_mm"] * 1e-3, nx, ny)
 
 
 def _compare(args, cfg, sites):
@@ -174,16 +250,24 @@ def _compare(args, cfg, sites):
         for line, row in _read_csv(args.compare, ("instrument", "x_mm", "y_mm")):
             kind = row["instrument"]
             if kind not in QUANTITY_CHOICES:
-                raise ValueError(f"{args.compare}:{line}: field 'instrument': must be one of "
-                                 f"{', '.join(QUANTITY_CHOICES)}, got {kind!r}")
+                raise ValueError(
+                    f"{args.compare}:{line}: field 'instrument': must be one of "
+                    f"{', '.join(QUANTITY_CHOICES)}, got {kind!r}"
+                )
             x, y = (_number(args.compare, line, row, k) for k in ("x_mm", "y_mm"))
             _on_table(row.get("point", "?"), x, y, cfg, f"{args.compare}:{line}")
             rows.append((kind, x, y))
         where = args.compare
     out = []
     for kind, x, y in rows:
-        name = next((n for n, (sx, sy) in sites.items()
-                     if abs(sx * 1e3 - x) < 1e-6 and abs(sy * 1e3 - y) < 1e-6), None)
+        name = next(
+            (
+                n
+                for n, (sx, sy) in sites.items()
+                if abs(sx * 1e3 - x) < 1e-6 and abs(sy * 1e3 - y) < 1e-6
+            ),
+            None,
+        )
         if name is None:
             name = f"U{len([n for n in sites if n.startswith('U')]) + 1}"
             sites[name] = (x * 1e-3, y * 1e-3)
@@ -199,10 +283,18 @@ def _instruments(args):
     out = []
     for kind, count, sig, reads in (
         ("level", args.levels, args.level_sigma_urad * 1e-6, args.level_reads),
-        ("interferometer", args.interferometers, args.interferometer_sigma_urad * 1e-6,
-         args.interferometer_reads),
-        ("straightness", args.straightness, args.straightness_sigma_um * 1e-6,
-         args.straightness_reads),
+        (
+            "interferometer",
+            args.interferometers,
+            args.interferometer_sigma_urad * 1e-6,
+            args.interferometer_reads,
+        ),
+        (
+            "straightness",
+            args.straightness,
+            args.straightness_sigma_um * 1e-6,
+            args.straightness_reads,
+        ),
     ):
         if not 0 <= count <= 50:
             raise ValueError(f"the number of {kind}s must be in [0, 50], got {count}")
@@ -211,12 +303,15 @@ def _instruments(args):
         q = tuple(s.strip().upper() for s in reads.split(",") if s.strip())
         bad = [x for x in q if x not in QUANTITY_CHOICES[kind]]
         if not q or bad:
-            raise ValueError(f"--{kind}-reads: a {kind} reads "
-                             f"{' and/or '.join(QUANTITY_CHOICES[kind])}, got {reads!r}")
+            raise ValueError(
+                f"--{kind}-reads: a {kind} reads "
+                f"{' and/or '.join(QUANTITY_CHOICES[kind])}, got {reads!r}"
+            )
         out.append(Instrument(kind, count, q, sig))
     if sum(i.count for i in out) == 0:
-        raise ValueError("no instruments to place (--levels, --interferometers, "
-                         "--straightness are all 0)")
+        raise ValueError(
+            "no instruments to place (--levels, --interferometers, --straightness are all 0)"
+        )
     return out
 
 
@@ -236,25 +331,34 @@ def _check(args):
 def _table_csv(result) -> str:
     crit = result.criterion
     unit = "nats" if crit == "D" else "um"
-    lines = [f"step,instrument,site,x_mm,y_mm,reads,{crit}_before_{unit},{crit}_after_{unit},"
-             "worst_sigma_um,rms_sigma_um"]
+    lines = [
+        f"step,instrument,site,x_mm,y_mm,reads,{crit}_before_{unit},{crit}_after_{unit},"
+        "worst_sigma_um,rms_sigma_um"
+    ]
     for k, s in enumerate(result.steps):
-        lines.append(f"{k + 1},{s.placement[0]},{s.placement[1]},{s.xy[0] * 1e3:.1f},"
-                     f"{s.xy[1] * 1e3:.1f},{'+'.join(s.quantities)},{s.before:.5g},"
-                     f"{s.after:.5g},{s.worst * 1e6:.5g},{s.rms * 1e6:.5g}")
+        lines.append(
+            f"{k + 1},{s.placement[0]},{s.placement[1]},{s.xy[0] * 1e3:.1f},"
+            f"{s.xy[1] * 1e3:.1f},{'+'.join(s.quantities)},{s.before:.5g},"
+            f"{s.after:.5g},{s.worst * 1e6:.5g},{s.rms * 1e6:.5g}"
+        )
     return "\n".join(lines) + "\n"
 
 
 def _evaluation_json(ev, sites):
     return {
-        "placements": [{"instrument": k, "site": s, "x_mm": sites[s][0] * 1e3,
-                        "y_mm": sites[s][1] * 1e3} for k, s in ev.placements],
-        "worst_profile_sigma_um": ev.worst * 1e6, "rms_profile_sigma_um": ev.rms * 1e6,
+        "placements": [
+            {"instrument": k, "site": s, "x_mm": sites[s][0] * 1e3, "y_mm": sites[s][1] * 1e3}
+            for k, s in ev.placements
+        ],
+        "worst_profile_sigma_um": ev.worst * 1e6,
+        "rms_profile_sigma_um": ev.rms * 1e6,
         "log_det_cov": ev.logdet,
         "work_point_sigma": None if not np.isfinite(ev.work) else ev.work * 1e6,
         "worst_profile_sigma_um_per_profile": {
             f"rail {r + 1} {pl}": float(ev.sigma[r, p].max() * 1e6)
-            for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))},
+            for r in range(2)
+            for p, pl in enumerate(("vertical", "horizontal"))
+        },
         "structure_posterior_over_prior_sigma": ev.structure_ratio,
     }
 
@@ -286,49 +390,97 @@ def run(args) -> int:
         wq = tuple(q.strip().upper() for q in args.work_reads.split(","))
         bad = [q for q in wq if q not in ("EYX", "EZX", "EAX", "EBX", "ECX")]
         if bad or not wq:
-            raise ValueError(f"--work-reads must be among EYX,EZX,EAX,EBX,ECX, got "
-                             f"{args.work_reads!r}")
+            raise ValueError(
+                f"--work-reads must be among EYX,EZX,EAX,EBX,ECX, got {args.work_reads!r}"
+            )
         sites["WORK"] = (wx * 1e-3, wy * 1e-3)
         work = ("WORK", wq)
-    priors = structure_priors(argparse.Namespace(
-        structure=args.structure, criterion=None, thickness_prior_mm=args.thickness_prior_mm,
-        preload_prior=args.preload_prior), cfg)
+    priors = structure_priors(
+        argparse.Namespace(
+            structure=args.structure,
+            criterion=None,
+            thickness_prior_mm=args.thickness_prior_mm,
+            preload_prior=args.preload_prior,
+        ),
+        cfg,
+    )
     half = cfg["machine"]["stroke_mm"] / 2
     positions = np.linspace(-half, half, args.positions) * 1e-3
 
     def make_machine(**kw):
         return build_machine(spec, points=sites, **kw)
 
-    _say(args, f"plan: {len(candidates)} candidate sites, "
-               + ", ".join(f"{i.count} {i.kind}(s) reading {'+'.join(i.quantities)}"
-                           for i in instruments if i.count)
-               + f"; {args.positions} positions x {args.runs} runs"
-               + ("" if args.unidirectional else " x 2 directions"))
+    _say(
+        args,
+        f"plan: {len(candidates)} candidate sites, "
+        + ", ".join(
+            f"{i.count} {i.kind}(s) reading {'+'.join(i.quantities)}"
+            for i in instruments
+            if i.count
+        )
+        + f"; {args.positions} positions x {args.runs} runs"
+        + ("" if args.unidirectional else " x 2 directions"),
+    )
     family = MachineFamily.build(make_machine, priors, progress=lambda t: _say(args, t))
-    result = plan(family, positions, instruments=instruments, criterion=args.criterion,
-                  compare=compare, rail_rms=args.rail_rms_um * 1e-6, runs=args.runs,
-                  bidirectional=not args.unidirectional, candidates=candidates,
-                  work_point=work, progress=lambda t: _say(args, t), n_draws=args.draws)
-    _say(args, f"plan: worst profile σ {result.best.worst * 1e6:.3f} µm"
-               + (f" (your plan: {result.compare.worst * 1e6:.3f} µm)" if compare else "")
-               + f", prior only {result.prior.worst * 1e6:.3f} µm; {result.seconds:.1f} s")
+    result = plan(
+        family,
+        positions,
+        instruments=instruments,
+        criterion=args.criterion,
+        compare=compare,
+        rail_rms=args.rail_rms_um * 1e-6,
+        runs=args.runs,
+        bidirectional=not args.unidirectional,
+        candidates=candidates,
+        work_point=work,
+        progress=lambda t: _say(args, t),
+        n_draws=args.draws,
+    )
+    _say(
+        args,
+        f"plan: worst profile σ {result.best.worst * 1e6:.3f} µm"
+        + (f" (your plan: {result.compare.worst * 1e6:.3f} µm)" if compare else "")
+        + f", prior only {result.prior.worst * 1e6:.3f} µm; {result.seconds:.1f} s",
+    )
     report = {
-        "command": "diffguide plan", "preset": None if args.config else args.preset,
-        "config": args.config, "criterion": args.criterion,
+        "command": "diffguide plan",
+        "preset": None if args.config else args.preset,
+        "config": args.config,
+        "criterion": args.criterion,
         "criterion_unit": "nats" if args.criterion == "D" else "µm (µm/m for angles)",
-        "lambda": result.lam, "rail_rms_um": args.rail_rms_um,
+        "lambda": result.lam,
+        "rail_rms_um": args.rail_rms_um,
         "lambda_note": "pass to 'diffguide fit --lambda' to fit with the planner's prior",
-        "positions": args.positions, "runs": args.runs,
+        "positions": args.positions,
+        "runs": args.runs,
         "directions": 1 if args.unidirectional else 2,
-        "instruments": [{"kind": i.kind, "count": i.count, "reads": list(i.quantities),
-                         "reading_sigma": i.sigma * 1e6} for i in instruments],
-        "structure": "estimate" if priors.active() else "fixed", "draws": args.draws,
+        "instruments": [
+            {
+                "kind": i.kind,
+                "count": i.count,
+                "reads": list(i.quantities),
+                "reading_sigma": i.sigma * 1e6,
+            }
+            for i in instruments
+        ],
+        "structure": "estimate" if priors.active() else "fixed",
+        "draws": args.draws,
         "gauge": "each profile's mean and each plane's common slope removed",
         "candidate_sites": {n: [sites[n][0] * 1e3, sites[n][1] * 1e3] for n in candidates},
-        "steps": [{"instrument": s.placement[0], "site": s.placement[1],
-                   "x_mm": s.xy[0] * 1e3, "y_mm": s.xy[1] * 1e3, "reads": list(s.quantities),
-                   "before": s.before, "after": s.after, "worst_sigma_um": s.worst * 1e6,
-                   "rms_sigma_um": s.rms * 1e6} for s in result.steps],
+        "steps": [
+            {
+                "instrument": s.placement[0],
+                "site": s.placement[1],
+                "x_mm": s.xy[0] * 1e3,
+                "y_mm": s.xy[1] * 1e3,
+                "reads": list(s.quantities),
+                "before": s.before,
+                "after": s.after,
+                "worst_sigma_um": s.worst * 1e6,
+                "rms_sigma_um": s.rms * 1e6,
+            }
+            for s in result.steps
+        ],
         "plan": _evaluation_json(result.best, sites),
         "compare": None if compare is None else _evaluation_json(result.compare, sites),
         "prior_only": _evaluation_json(result.prior, sites),
@@ -340,8 +492,7 @@ def run(args) -> int:
     report["total_seconds"] = time.perf_counter() - t_start
     files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
     _write_dir(Path(args.out), files)
-    _say(args, f"wrote {args.out}/ ({', '.join(files)}) in "
-               f"{time.perf_counter() - t_start:.1f} s")
+    _say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
     return 0
 
 
@@ -350,17 +501,22 @@ def _figures(result, cfg, compare):
     from ..plotting.plan import plot_plan_sigma, plot_plan_sites
 
     ax = plot_plan_sites(
-        result.sites, result.candidates, result.placements, compare=compare or (),
+        result.sites,
+        result.candidates,
+        result.placements,
+        compare=compare or (),
         table_mm=(cfg["table"]["length_mm"], cfg["table"]["width_mm"]),
-        rails_y_mm=cfg["guideway"]["rail_y_mm"], carriages_x_mm=cfg["guideway"]["carriage_x_mm"],
+        rails_y_mm=cfg["guideway"]["rail_y_mm"],
+        carriages_x_mm=cfg["guideway"]["carriage_x_mm"],
         title=f"measurement plan ({result.criterion}): worst profile σ "
-              f"{result.best.worst * 1e6:.2f} µm"
-              + (f", your plan {result.compare.worst * 1e6:.2f} µm" if compare else ""))
+        f"{result.best.worst * 1e6:.2f} µm"
+        + (f", your plan {result.compare.worst * 1e6:.2f} µm" if compare else ""),
+    )
     sig = {"plan": result.best.sigma}
     if compare:
         sig["your plan"] = result.compare.sigma
     sig["prior only"] = result.prior.sigma
-    axes = plot_plan_sigma(result.best.s, sig,
-                           title="predicted σ of the rail profiles (mean and common slope "
-                                 "removed)")
+    axes = plot_plan_sigma(
+        result.best.s, sig, title="predicted σ of the rail profiles (mean and common slope removed)"
+    )
     return {"plan.png": figure_of(ax), "sigma.png": figure_of(axes)}

@@ -29,8 +29,17 @@ gauge-fixed profiles over the visited length ``L``:
 (``‖G₀c‖² = Σ∫e²ds / L⁴``, :meth:`~.basis.RailBasis.amplitude_factor`), so that
 ``fit_rails(..., lam=plan.lam)`` fits with exactly the planner's prior.
 
-**Posterior.** For a set ``𝒫`` of placements ``H = P + Σ_{b∈𝒫} J_bᵀJ_b``,
-``P = diag(λΩ, I)``, ``Cov = H⁻¹`` — the fit's ``s²(JᵀJ + P)⁻¹`` at ``s = 1``. The profiles'
+**The structure.** At straight rails the data say nothing about the table's thickness or the
+preload (straight rails give no errors at any structure): ``∂E/∂q = Dθ`` grows with the rails,
+``D = ∂²E/∂q∂θ`` (central differences of the rail Jacobian in ``q``). Its information, and its
+coupling to the rails (the structure's uncertainty widens the rails' bands), depend on rails
+nobody knows yet, so the experiment is linearised at ``n_draws`` rails ``θ_d`` drawn from the
+prior, ``J_{c,d} = [J_c^θ, D_c θ_d]``, and every variance below is the mean over the
+draws of the posterior variance at ``θ_d`` — the expected posterior variance (a pseudo-Bayesian
+design), which is the expected squared error of a fit over truths from the prior.
+
+**Posterior.** For a set ``𝒫`` of placements ``H_d = P + Σ_{b∈𝒫} J_{b,d}ᵀJ_{b,d}``,
+``P = diag(λΩ, I)``, ``Cov_d = H_d⁻¹`` — the fit's ``s²(JᵀJ + P)⁻¹`` at ``s = 1``. The profiles'
 σ are reported in **one gauge for every plan**, whatever it measures: each profile's mean and each
 plane's common least-squares slope removed (``Π`` below, what
 :meth:`~.basis.RailBasis.gauge_fix` does with both slopes fixed; for plans without straightness
@@ -48,8 +57,8 @@ data it is the fit's own gauge), so the σ of different plans compare.
 **Greedy selection.** Starting from the prior (or a given plan), each step tries every remaining
 placement (instrument types with budget left, a site not yet used by that type) and keeps the
 one with the smallest criterion after it. Each placement's information ``J_bᵀJ_b = R_bᵀR_b``
-is held as a thin factor ``R_b`` (rank ``r_b``), so a trial is a rank-``r_b`` Woodbury update of
-``S = H⁻¹``:
+(per draw) is held as a thin factor ``R_b`` (rank ``r_b``), so a trial is a rank-``r_b``
+Woodbury update of ``S = H⁻¹``:
 
 .. math::  S' = S - U K^{-1} U^T,\quad U = SR_b^T,\quad K = I + R_b S R_b^T,\qquad
            \log\det H' = \log\det H + \log\det K,
@@ -57,8 +66,8 @@ is held as a thin factor ``R_b`` (rank ``r_b``), so a trial is a rank-``r_b`` Wo
 and the new profile variances are ``diag(WSWᵀ) − colsum(X²)``, ``X = L_K⁻¹(WU)ᵀ`` with
 ``K = L_K L_Kᵀ`` — no ``n_x × n_x`` inverse per trial.
 
-**What it does not model**: the nonlinearity of the model in µm-size rails (small: the fit's
-Gauss–Newton posterior is linearised the same way), χ²/dof > 1 in a real fit (the fit widens its
+**What it does not model**: the rails' own nonlinearity (small for µm-size rails), χ²/dof > 1
+in a real fit (the fit widens its
 bands by ``s``; the planner assumes the data are as good as stated), and positioning (EXX)
 channels (with their lead-error unknowns) — plan those with the fit itself.
 """
@@ -123,8 +132,7 @@ class Instrument:
         object.__setattr__(self, "quantities", q)
         bad = [x for x in q if x not in KINDS[self.kind]]
         if not q or bad or len(set(q)) != len(q):
-            raise ValueError(f"a {self.kind} reads {' and/or '.join(KINDS[self.kind])}, got "
-                             f"{q!r}")
+            raise ValueError(f"a {self.kind} reads {' and/or '.join(KINDS[self.kind])}, got {q!r}")
         if self.sigma is None:
             object.__setattr__(self, "sigma", DEFAULT_READING_SIGMA[self.kind])
         if not (np.isfinite(self.sigma) and self.sigma > 0):
@@ -162,8 +170,12 @@ class Evaluation:
 
     def criterion(self, name: str) -> float:
         """The value of criterion ``name`` (:data:`CRITERIA`; µm, µm/m or nats)."""
-        return {"worst": self.worst / _UM, "A": self.rms / _UM, "D": self.logdet,
-                "work": self.work / _UM}[name]
+        return {
+            "worst": self.worst / _UM,
+            "A": self.rms / _UM,
+            "D": self.logdet,
+            "work": self.work / _UM,
+        }[name]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -236,9 +248,9 @@ def gauge_projector(basis: RailBasis) -> np.ndarray:
     lin = np.linalg.lstsq(B, s - s.mean(), rcond=None)[0]
     G = np.zeros((4 * n, 6))
     for k in range(4):
-        G[k * n:(k + 1) * n, k] = one
+        G[k * n : (k + 1) * n, k] = one
     for k, (_, plane) in enumerate(PROFILES):
-        G[k * n:(k + 1) * n, 4 + (plane == "horizontal")] = lin
+        G[k * n : (k + 1) * n, 4 + (plane == "horizontal")] = lin
     return np.eye(4 * n) - G @ np.linalg.solve(C @ G, C)
 
 
@@ -294,8 +306,9 @@ class Planner:
         self.candidates = tuple(names if candidates is None else candidates)
         for n in self.candidates:
             if n not in self.sites:
-                raise ValueError(f"candidate site {n!r} is not a point of the machine "
-                                 f"({', '.join(names)})")
+                raise ValueError(
+                    f"candidate site {n!r} is not a point of the machine ({', '.join(names)})"
+                )
         self.instruments = tuple(instruments)
         kinds = [i.kind for i in self.instruments]
         if not kinds or len(set(kinds)) != len(kinds):
@@ -341,32 +354,49 @@ class Planner:
         self.P = P
 
         # one Jacobian of the model at every (position, site, quantity) needed
-        rows_q = sorted({QUANTITIES.index(q) for q in used}
-                        | ({QUANTITIES.index(q) for q in self.work_point[1]}
-                           if self.work_point else set()))
+        rows_q = sorted(
+            {QUANTITIES.index(q) for q in used}
+            | ({QUANTITIES.index(q) for q in self.work_point[1]} if self.work_point else set())
+        )
         pts = list(range(len(names)))  # every point: candidates, a user's plan, work point
         grid = np.array([(i, p, q) for i in range(len(positions)) for p in pts for q in rows_q])
         meas = Measurements(
-            names, xy, positions[grid[:, 0]], grid[:, 1], grid[:, 2],
-            np.zeros(len(grid)), np.ones(len(grid)), np.ones(len(grid), int),
-            np.full(len(grid), np.nan), ("level",) * len(grid), ("column",) * len(grid))
+            names,
+            xy,
+            positions[grid[:, 0]],
+            grid[:, 1],
+            grid[:, 2],
+            np.zeros(len(grid)),
+            np.ones(len(grid)),
+            np.ones(len(grid), int),
+            np.full(len(grid), np.nan),
+            ("level",) * len(grid),
+            ("column",) * len(grid),
+        )
         prob = _problem(family, meas, basis, np.zeros((meas.n, 0)), x_ref)
-        line = (f"plan: sensitivities of {len(pts)} points x {len(rows_q)} quantities at "
-                f"{len(positions)} positions to {basis.size} rail + {n_q} structural unknowns "
-                "(one compiled forward-mode Jacobian)")
+        line = (
+            f"plan: sensitivities of {len(pts)} points x {len(rows_q)} quantities at "
+            f"{len(positions)} positions to {basis.size} rail + {n_q} structural unknowns "
+            "(one compiled forward-mode Jacobian)"
+        )
         _log.info(line)
         say(line)
         Jv, ok = _jacobian(jnp.zeros(basis.size + n_q), prob)
         Jv = np.asarray(Jv)
         if not bool(ok) or not np.all(np.isfinite(Jv)):
-            raise ValueError("the machine equilibrium did not converge for straight rails at "
-                             "the prior structure; check the machine configuration")
+            raise ValueError(
+                "the machine equilibrium did not converge for straight rails at "
+                "the prior structure; check the machine configuration"
+            )
         M = np.zeros((basis.size + n_q, self.n_x))
-        M[:basis.size, :n_th] = Z
-        M[basis.size:, n_th:] = np.eye(n_q)
+        M[: basis.size, :n_th] = Z
+        M[basis.size :, n_th:] = np.eye(n_q)
         Jx = (Jv @ M).reshape(len(positions), len(pts), len(rows_q), self.n_x)
-        self._raw = {(names[p], QUANTITIES[q]): Jx[:, a, b]
-                     for a, p in enumerate(pts) for b, q in enumerate(rows_q)}
+        self._raw = {
+            (names[p], QUANTITIES[q]): Jx[:, a, b]
+            for a, p in enumerate(pts)
+            for b, q in enumerate(rows_q)
+        }
         # the structure: ∂E/∂q vanishes at straight rails (straight rails give no errors at
         # any structure); at rails θ it is D θ, D = ∂²E/∂q∂θ the mixed derivatives (central
         # differences of the rail Jacobian in q, step STRUCTURE_STEP)
@@ -380,9 +410,11 @@ class Planner:
             Jp, okp = _jacobian(jnp.asarray(dv), prob)
             Jm, okm = _jacobian(jnp.asarray(-dv), prob)
             if not (bool(okp) and bool(okm)):
-                raise ValueError("the machine equilibrium did not converge near the prior "
-                                 "structure; check the machine configuration")
-            D = (np.asarray(Jp) - np.asarray(Jm))[:, :basis.size] @ Z / (2 * STRUCTURE_STEP)
+                raise ValueError(
+                    "the machine equilibrium did not converge near the prior "
+                    "structure; check the machine configuration"
+                )
+            D = (np.asarray(Jp) - np.asarray(Jm))[:, : basis.size] @ Z / (2 * STRUCTURE_STEP)
             D = D.reshape(len(positions), len(pts), len(rows_q), n_th)
             for a, p in enumerate(pts):
                 for b, q in enumerate(rows_q):
@@ -407,22 +439,26 @@ class Planner:
         self.W = W
         self.W_work = None
         if self.work_point:
-            self.W_work = np.vstack([self._raw[(self.work_point[0], q)]
-                                     for q in self.work_point[1]])
+            self.W_work = np.vstack(
+                [self._raw[(self.work_point[0], q)] for q in self.work_point[1]]
+            )
         self.instrument = {i.kind: i for i in self.instruments}
 
     def _factor(self, inst: Instrument, site: str, sig: float) -> np.ndarray:
         """Thin factors ``R_d`` (``RᵀR = J_dᵀJ_d``) of one placement at every draw, stacked
         ``(n_draws, r, n_x)`` (zero rows pad the ranks to one ``r``)."""
+
         def centred(a):
             return (a - a.mean(axis=0)) / sig
 
         Jt = np.vstack([centred(self._raw[(site, q)]) for q in inst.quantities])
-        D = [np.vstack([centred(self._mixed[(site, q, k)]) for q in inst.quantities])
-             for k in range(self.n_q)]
+        D = [
+            np.vstack([centred(self._mixed[(site, q, k)]) for q in inst.quantities])
+            for k in range(self.n_q)
+        ]
         out = []
         for th in self.draws:
-            J = np.hstack([Jt[:, :self.n_theta]] + [(Dk @ th)[:, None] for Dk in D])
+            J = np.hstack([Jt[:, : self.n_theta]] + [(Dk @ th)[:, None] for Dk in D])
             w, V = np.linalg.eigh(J.T @ J)
             keep = w > 1e-10 * max(w.max(), 1e-300)
             out.append((V[:, keep] * np.sqrt(w[keep])).T)
@@ -435,9 +471,11 @@ class Planner:
             p = (str(p[0]), str(p[1]))
             if p not in self.blocks:
                 kinds = ", ".join(self.instrument)
-                raise ValueError(f"placement {p}: the instrument kind must be one of {kinds} "
-                                 "and the site a point of the machine "
-                                 f"({', '.join(self.sites)})")
+                raise ValueError(
+                    f"placement {p}: the instrument kind must be one of {kinds} "
+                    "and the site a point of the machine "
+                    f"({', '.join(self.sites)})"
+                )
             out.append(p)
         return tuple(out)
 
@@ -470,10 +508,20 @@ class Planner:
         var, var_w = self._variances(S)
         sig = np.sqrt(var) * _UM
         work = float("nan") if var_w is None else float(np.sqrt(max(var_w.max(), 0.0))) * _UM
-        ratio = {n: float(np.sqrt(max(np.mean(S[:, self.n_theta + i, self.n_theta + i]), 0.0)))
-                 for i, n in enumerate(self.family.names)}
-        return Evaluation(tuple(placements), self.s, sig.reshape(2, 2, N_S), float(sig.max()),
-                          float(np.sqrt(np.mean(sig**2))), float(np.mean(logdet)), work, ratio)
+        ratio = {
+            n: float(np.sqrt(max(np.mean(S[:, self.n_theta + i, self.n_theta + i]), 0.0)))
+            for i, n in enumerate(self.family.names)
+        }
+        return Evaluation(
+            tuple(placements),
+            self.s,
+            sig.reshape(2, 2, N_S),
+            float(sig.max()),
+            float(np.sqrt(np.mean(sig**2))),
+            float(np.mean(logdet)),
+            work,
+            ratio,
+        )
 
     def _trial(self, S, var, var_w, R, criterion):
         """Criterion after adding the factors ``R`` (one per draw) to ``H_d = S_d⁻¹``
@@ -524,8 +572,12 @@ class Planner:
             before = self._value(criterion, var, var_w, logdet)
             best = None
             for p, R in self.blocks.items():
-                if (budget.get(p[0], 0) <= 0 or p in chosen or R.shape[1] == 0
-                        or p[1] not in self.candidates):
+                if (
+                    budget.get(p[0], 0) <= 0
+                    or p in chosen
+                    or R.shape[1] == 0
+                    or p[1] not in self.candidates
+                ):
                     continue
                 value, X, ldk = self._trial(S, var, var_w, R, criterion)
                 if best is None or value < best[0] - 1e-12 * abs(best[0]):
@@ -540,12 +592,23 @@ class Planner:
             budget[p[0]] -= 1
             ev = self._evaluation(tuple(chosen), S, logdet)
             after = ev.criterion(criterion)
-            steps.append(Step(p, self.sites[p[1]], self.instrument[p[0]].quantities,
-                              self._user(criterion, before), after, ev.worst, ev.rms,
-                              ev.logdet))
-            line = (f"plan: step {k + 1}/{total}: {p[0]} at {p[1]} "
-                    f"({self.sites[p[1]][0] * 1e3:.0f}, {self.sites[p[1]][1] * 1e3:.0f}) mm: "
-                    f"{criterion} {self._user(criterion, before):.4g} -> {after:.4g}")
+            steps.append(
+                Step(
+                    p,
+                    self.sites[p[1]],
+                    self.instrument[p[0]].quantities,
+                    self._user(criterion, before),
+                    after,
+                    ev.worst,
+                    ev.rms,
+                    ev.logdet,
+                )
+            )
+            line = (
+                f"plan: step {k + 1}/{total}: {p[0]} at {p[1]} "
+                f"({self.sites[p[1]][0] * 1e3:.0f}, {self.sites[p[1]][1] * 1e3:.0f}) mm: "
+                f"{criterion} {self._user(criterion, before):.4g} -> {after:.4g}"
+            )
             _log.info(line)
             if progress is not None:
                 progress(line)
@@ -611,17 +674,38 @@ def plan(
     t0 = time.perf_counter()
     if instruments is None:
         instruments = (Instrument("level", 4), Instrument("interferometer", 1))
-    planner = Planner(machine, instruments, positions, runs=runs, bidirectional=bidirectional,
-                      rail_rms=rail_rms, candidates=candidates, work_point=work_point,
-                      knot_spacing=knot_spacing, n_draws=n_draws, seed=seed,
-                      progress=progress)
+    planner = Planner(
+        machine,
+        instruments,
+        positions,
+        runs=runs,
+        bidirectional=bidirectional,
+        rail_rms=rail_rms,
+        candidates=candidates,
+        work_point=work_point,
+        knot_spacing=knot_spacing,
+        n_draws=n_draws,
+        seed=seed,
+        progress=progress,
+    )
     if criterion not in CRITERIA:
         raise ValueError(f"criterion must be one of {CRITERIA}, got {criterion!r}")
     steps, best = planner.greedy(None, criterion, start, progress)
     comp = planner.evaluate(compare) if compare is not None else None
-    return Plan(criterion, planner.lam, float(rail_rms), steps, best, comp, planner.evaluate(()),
-                planner.sites, planner.candidates, planner.instruments, planner,
-                time.perf_counter() - t0)
+    return Plan(
+        criterion,
+        planner.lam,
+        float(rail_rms),
+        steps,
+        best,
+        comp,
+        planner.evaluate(()),
+        planner.sites,
+        planner.candidates,
+        planner.instruments,
+        planner,
+        time.perf_counter() - t0,
+    )
 
 
 def grid_sites(length: float, width: float, nx: int, ny: int, margin: float = 0.05) -> dict:
@@ -631,9 +715,22 @@ def grid_sites(length: float, width: float, nx: int, ny: int, margin: float = 0.
         raise ValueError(f"the site grid needs nx, ny >= 1, got {nx} x {ny}")
     xs = np.linspace(-length / 2 + margin, length / 2 - margin, nx) if nx > 1 else [0.0]
     ys = np.linspace(-width / 2 + margin, width / 2 - margin, ny) if ny > 1 else [0.0]
-    return {f"G{i + 1}_{j + 1}": (float(x), float(y))
-            for i, x in enumerate(xs) for j, y in enumerate(ys)}
+    return {
+        f"G{i + 1}_{j + 1}": (float(x), float(y))
+        for i, x in enumerate(xs)
+        for j, y in enumerate(ys)
+    }
 
 
-__all__ = ["CRITERIA", "KINDS", "Evaluation", "Instrument", "Plan", "Planner", "Step",
-           "gauge_projector", "grid_sites", "plan"]
+__all__ = [
+    "CRITERIA",
+    "KINDS",
+    "Evaluation",
+    "Instrument",
+    "Plan",
+    "Planner",
+    "Step",
+    "gauge_projector",
+    "grid_sites",
+    "plan",
+]

@@ -5,13 +5,26 @@ import numpy as np
 
 from . import axes_grid
 
-_MARKERS = {"level": ("^", "tab:blue"), "interferometer": ("s", "tab:red"),
-            "straightness": ("D", "tab:green")}
+_MARKERS = {
+    "level": ("^", "tab:blue"),
+    "interferometer": ("s", "tab:red"),
+    "straightness": ("D", "tab:green"),
+}
 _PLANES = ("vertical", "horizontal")
 
 
-def plot_plan_sites(sites, candidates, placements, *, compare=(), table_mm=None,
-                    rails_y_mm=None, carriages_x_mm=None, title: str = "", ax=None):
+def plot_plan_sites(
+    sites,
+    candidates,
+    placements,
+    *,
+    compare=(),
+    table_mm=None,
+    rails_y_mm=None,
+    carriages_x_mm=None,
+    title: str = "",
+    ax=None,
+):
     """The table top seen from above: candidate sites, the plan's placements numbered in the
     order they were chosen, and a user's plan.
 
@@ -30,19 +43,35 @@ def plot_plan_sites(sites, candidates, placements, *, compare=(), table_mm=None,
     ax = axes[0, 0]
     if table_mm is not None:
         L, W = table_mm
-        ax.add_patch(__import__("matplotlib.patches", fromlist=["Rectangle"]).Rectangle(
-            (-L / 2, -W / 2), L, W, facecolor="0.96", edgecolor="0.3", lw=1.2, zorder=0))
+        ax.add_patch(
+            __import__("matplotlib.patches", fromlist=["Rectangle"]).Rectangle(
+                (-L / 2, -W / 2), L, W, facecolor="0.96", edgecolor="0.3", lw=1.2, zorder=0
+            )
+        )
         ax.set_xlim(-L / 2 - 0.06 * L, L / 2 + 0.06 * L)
         ax.set_ylim(-W / 2 - 0.16 * W, W / 2 + 0.16 * W)
     if rails_y_mm is not None:
         for r, y in enumerate(rails_y_mm):
             ax.axhline(y, color="0.55", ls="--", lw=1.0, zorder=1)
-            ax.annotate(f"rail {r + 1}", (ax.get_xlim()[0], y), xytext=(4, 3),
-                        textcoords="offset points", color="0.4", fontsize=9)
+            ax.annotate(
+                f"rail {r + 1}",
+                (ax.get_xlim()[0], y),
+                xytext=(4, 3),
+                textcoords="offset points",
+                color="0.4",
+                fontsize=9,
+            )
             if carriages_x_mm is not None:
                 for x in carriages_x_mm:
-                    ax.plot([x - 35, x + 35], [y, y], color="0.45", lw=5, alpha=0.5,
-                            solid_capstyle="butt", zorder=1)
+                    ax.plot(
+                        [x - 35, x + 35],
+                        [y, y],
+                        color="0.45",
+                        lw=5,
+                        alpha=0.5,
+                        solid_capstyle="butt",
+                        zorder=1,
+                    )
     xy = np.array([sites[n] for n in candidates]) * 1e3
     ax.plot(xy[:, 0], xy[:, 1], "o", ms=4, color="0.6", zorder=2, label="candidate site")
     seen = set()
@@ -62,8 +91,16 @@ def plot_plan_sites(sites, candidates, placements, *, compare=(), table_mm=None,
         label = f"plan: {kind}" if ("plan", kind) not in seen else None
         seen.add(("plan", kind))
         ax.plot(x + dx, y + dx, m, ms=11, color=c, mec="k", mew=0.6, zorder=4, label=label)
-        ax.annotate(str(k + 1), (x + dx, y + dx), xytext=(7, 6), textcoords="offset points",
-                    fontsize=10, fontweight="bold", color=c, zorder=5)
+        ax.annotate(
+            str(k + 1),
+            (x + dx, y + dx),
+            xytext=(7, 6),
+            textcoords="offset points",
+            fontsize=10,
+            fontweight="bold",
+            color=c,
+            zorder=5,
+        )
     ax.set_aspect("equal")
     ax.set_xlabel("x on the table (mm, along the rails)")
     ax.set_ylabel("y (mm)")
@@ -83,8 +120,9 @@ def plot_plan_sigma(s_m, sigmas, *, title: str = "", ax=None):
         the (2, 2) array of Axes (rows: vertical, horizontal; columns: rail 1, rail 2).
     """
     s_mm = np.asarray(s_m) * 1e3
-    fig, axes = axes_grid(ax, 2, 2, figsize=(11, 6.5), sharex=True, sharey="row",
-                          constrained_layout=True)
+    fig, axes = axes_grid(
+        ax, 2, 2, figsize=(11, 6.5), sharex=True, sharey="row", constrained_layout=True
+    )
     styles = ("-", "--", ":", "-.")
     colours = ("tab:blue", "k", "tab:orange", "tab:green")
     for p in range(2):
@@ -92,8 +130,14 @@ def plot_plan_sigma(s_m, sigmas, *, title: str = "", ax=None):
             a = axes[p, r]
             for j, (label, sig) in enumerate(sigmas.items()):
                 v = np.asarray(sig)[r, p] * 1e6
-                a.plot(s_mm, v, styles[j % 4], color=colours[j % 4], lw=1.6,
-                       label=f"{label} (max {v.max():.2f} µm)")
+                a.plot(
+                    s_mm,
+                    v,
+                    styles[j % 4],
+                    color=colours[j % 4],
+                    lw=1.6,
+                    label=f"{label} (max {v.max():.2f} µm)",
+                )
             a.set_title(f"rail {r + 1}, {_PLANES[p]}", fontsize=10)
             a.set_ylim(bottom=0)
             a.grid(alpha=0.3)
