@@ -20,9 +20,9 @@ What is compared, and with what:
 
 The tests with simulated fits (40 fits) are marked ``slow`` (``pytest -m slow
 tests/test_plan.py``: 12 min on the shared 2-core machine at load 7–10); the default run keeps
-the planner's own checks and the CLI. The simulation uses the fit's own 20 × 10 model (the Bayesian check asks whether the planner's
-linear-Gaussian σ describes the nonlinear fit, not how large the model error of a coarser mesh
-is; the battery covers that).
+the planner's own checks and the CLI. The simulation uses the fit's own 20 × 10 model (the
+Bayesian check asks whether the planner's linear-Gaussian σ describes the nonlinear fit, not how
+large the model error of a coarser mesh is; the battery covers that).
 """
 
 import json
