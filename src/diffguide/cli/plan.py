@@ -380,6 +380,8 @@ def run(args) -> int:
     sites = _sites(args, cfg)
     candidates = tuple(sites)
     compare = _compare(args, cfg, sites)
+    used = {k for k, _ in compare or ()}
+    instruments = [i for i in instruments if i.count > 0 or i.kind in used]
     work = None
     if args.work_point is not None:
         try:
@@ -517,6 +519,9 @@ def _figures(result, cfg, compare):
         sig["your plan"] = result.compare.sigma
     sig["prior only"] = result.prior.sigma
     axes = plot_plan_sigma(
-        result.best.s, sig, title="predicted σ of the rail profiles (mean and common slope removed)"
+        result.best.s,
+        sig,
+        background=("prior only",),
+        title="predicted σ of the rail profiles (mean and common slope removed)",
     )
     return {"plan.png": figure_of(ax), "sigma.png": figure_of(axes)}

@@ -716,7 +716,7 @@ def grid_sites(length: float, width: float, nx: int, ny: int, margin: float = 0.
     xs = np.linspace(-length / 2 + margin, length / 2 - margin, nx) if nx > 1 else [0.0]
     ys = np.linspace(-width / 2 + margin, width / 2 - margin, ny) if ny > 1 else [0.0]
     return {
-        f"G{i + 1}_{j + 1}": (float(x), float(y))
+        f"G{i + 1}_{j + 1}": (float(np.round(x, 12)) + 0.0, float(np.round(y, 12)) + 0.0)
         for i, x in enumerate(xs)
         for j, y in enumerate(ys)
     }

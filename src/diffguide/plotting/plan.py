@@ -109,13 +109,14 @@ def plot_plan_sites(
     return ax
 
 
-def plot_plan_sigma(s_m, sigmas, *, title: str = "", ax=None):
+def plot_plan_sigma(s_m, sigmas, *, background=(), title: str = "", ax=None):
     """Predicted posterior σ of the gauge-fixed rail profiles along the rails, one panel per
     (plane, rail), one line per plan.
 
     Args:
         s_m: rail coordinate (m). sigmas: ``{label: sigma}``, each ``(2 rails, 2 planes, n)``
-            (m). ax: four Axes (default: a new figure).
+            (m). background: labels drawn thin and grey and left out of the y-scale (e.g. the
+            prior alone, which would flatten the others). ax: four Axes (default: a new figure).
     Returns:
         the (2, 2) array of Axes (rows: vertical, horizontal; columns: rail 1, rail 2).
     """
@@ -123,29 +124,30 @@ def plot_plan_sigma(s_m, sigmas, *, title: str = "", ax=None):
     fig, axes = axes_grid(
         ax, 2, 2, figsize=(11, 6.5), sharex=True, sharey="row", constrained_layout=True
     )
-    styles = ("-", "--", ":", "-.")
+    styles = ("-", "--", "-.", ":")
     colours = ("tab:blue", "k", "tab:orange", "tab:green")
     for p in range(2):
+        top = 0.0
         for r in range(2):
             a = axes[p, r]
-            for j, (label, sig) in enumerate(sigmas.items()):
+            j = 0
+            for label, sig in sigmas.items():
                 v = np.asarray(sig)[r, p] * 1e6
-                a.plot(
-                    s_mm,
-                    v,
-                    styles[j % 4],
-                    color=colours[j % 4],
-                    lw=1.6,
-                    label=f"{label} (max {v.max():.2f} µm)",
-                )
+                text = f"{label} (max {v.max():.2f} µm)"
+                if label in background:
+                    a.plot(s_mm, v, ":", color="0.55", lw=1.2, label=text)
+                    continue
+                a.plot(s_mm, v, styles[j % 4], color=colours[j % 4], lw=1.6, label=text)
+                top = max(top, float(v.max()))
+                j += 1
             a.set_title(f"rail {r + 1}, {_PLANES[p]}", fontsize=10)
-            a.set_ylim(bottom=0)
             a.grid(alpha=0.3)
             a.legend(fontsize=8, loc="upper center")
             if r == 0:
                 a.set_ylabel("profile σ (µm)")
             if p == 1:
                 a.set_xlabel("s along the rail (mm)")
+        axes[p, 0].set_ylim(0, 1.45 * top if top > 0 else None)
     if title:
         fig.suptitle(title)
     return axes
