@@ -443,7 +443,7 @@ def fit_rails(
         P[n_theta + n_q:, n_theta + n_q:] = LEAD_RIDGE**2 * np.eye(n_l)
         return P
 
-    def choose(J, r, x, weights):
+    def choose(J, r, x, weights, criterion=criterion):
         """λ on the problem linearised at ``x`` (nuisance columns projected out)."""
         used = int(np.sum(weights > 0))
         # the data in the rail and lead unknowns at the structure in x:
@@ -471,8 +471,12 @@ def fit_rails(
 
     def structure_stage(x, r, J, weights):
         """The structure by marginal likelihood at the current rails (see the module
-        docstring); returns ``x`` with ``q`` replaced, ``Cov q`` and a note."""
+        docstring), the prior's weight and shape (λ, κ) held at their choice at ``x`` (a smooth
+        objective in ``q``; λ is re-chosen afterwards and the stage repeated if it moved);
+        returns ``x`` with ``q`` replaced, ``Cov q`` and a note."""
         used = int(np.sum(weights > 0))
+        c0 = choose(J, r, x, weights, "ml")
+        Om_fixed = Om_curv + c0.kappa * Om_amp
 
         def score(q):
             xq = x.copy()
@@ -482,7 +486,7 @@ def fit_rails(
                 return np.inf
             y = -(r_q - J_q[:, ic] @ x[ic])  # data in the total rail and lead unknowns
             Jt, yp, rank_f = project_out(J_q[:, n_theta + n_q:], J_q[:, :n_theta], y)
-            return marginal_score(Jt, yp, Om_curv, Om_amp, used - n_chan - rank_f, lam) \
+            return marginal_score(Jt, yp, Om_fixed, used - n_chan - rank_f, c0.lam) \
                 + float(q @ q)
 
         q, cov, note = maximise_marginal(score, x[iq], q_bounds)
@@ -490,40 +494,56 @@ def fit_rails(
         out[iq] = q
         return out, cov, note
 
-    if n_q:
-        _log.info("fit: the structure by marginal likelihood (linearised at straight rails)")
-        x, cov_q, q_info = structure_stage(x, r, J, weights)
-        r, J, pred, ok, Jc = linearise(x)
     choice = choose(J, r, x, weights)
     P = penalty(choice)
     Pc = P[np.ix_(ic, ic)]
+    recent: dict = {}  # the full linearisations of LM's latest trial points
 
     def linearise_c(xc):
         xf = x.copy()
         xf[ic] = xc
-        r_, J_, pred_, ok_, Jc_ = linearise(xf)
-        return r_, (J_[:, ic] if J_ is not None else None), pred_, ok_, Jc_
+        out = linearise(xf)
+        recent.clear() if len(recent) > 4 else None
+        recent[xc.tobytes()] = out
+        return out[0], (out[1][:, ic] if out[1] is not None else None), *out[2:]
 
     def gn_start(r, J):
         Jc_ = J[:, ic]
         return x[ic] + np.linalg.solve(_spd(Jc_.T @ Jc_ + Pc), -(Jc_.T @ r + Pc @ x[ic]))
 
-    x[ic] = gn_start(r, J)  # Gauss–Newton start
+    def structure(r, J):
+        """The structure stage at ``x`` (``r``, ``J`` there); the linearisation at ``q̂``."""
+        _log.info("fit: the structure by marginal likelihood")
+        xn, cov, info = structure_stage(x, r, J, weights)
+        return xn, cov, info, linearise(xn)
+
+    x_lin = x.copy()
+    x[ic] = gn_start(r, J)  # Gauss–Newton start at the prior structure
     steps, converged, message = 0, True, "converged"
     outliers = np.zeros(0, int)
     passes = 0
+    if method == "linear" and n_q:  # the structure on the problem linearised at x = 0
+        x[ic] = 0.0
+        x, cov_q, q_info, (r, J, pred, ok, Jc) = structure(r, J)
+        x[ic] = gn_start(r, J)
+        x_lin = x.copy()
+        x_lin[ic] = 0.0
     if method == "lm":
         r, J, pred, ok, Jc = linearise(x)
         if not (bool(ok) and np.all(np.isfinite(J))):  # GN start too far: start from zero
             x[ic] = 0.0
             r, J, pred, ok, Jc = linearise(x)
+        if n_q:  # the structure at the Gauss–Newton rails
+            x_stage = x.copy()
+            x, cov_q, q_info, (r, J, pred, ok, Jc) = structure(r, J)
     while method == "lm":
         passes += 1
-        xc, r, Jsub, pred, Jc, converged, n, message = _levenberg_marquardt(
+        xc, r, _, pred, Jc, converged, n, message = _levenberg_marquardt(
             x[ic], r, J[:, ic], pred, Jc, linearise_c, Pc, rtol, max_steps)
         x[ic] = xc
         steps += n
-        r, J, pred, ok, Jc = linearise(x)
+        full = recent.get(xc.tobytes())
+        r, J, pred, ok, Jc = full if full is not None else linearise(x)
         _log.info("fit: pass %d, %d LM steps, chi2 %.4g, lambda %.3g (kappa %g): %s", passes, n,
                   float(r @ r), choice.lam, choice.kappa, message)
         if passes >= 4:
@@ -538,12 +558,14 @@ def fit_rails(
                 prob = eqx.tree_at(lambda p: p.weight, prob, jnp.asarray(weights))
                 r, J, pred, _, Jc = linearise(x)
                 redo = True
-        if n_q and (redo or passes == 1):  # the structure again, at the fitted rails
-            q_old = x[iq].copy()
-            x, cov_q, q_info = structure_stage(x, r, J, weights)
+        # the structure again when the data changed or the rails moved far from where it was
+        # estimated (a nonlinear model: the linearisation there no longer holds)
+        if n_q and (redo or np.linalg.norm(x[ic] - x_stage[ic])
+                    > 0.2 * max(np.linalg.norm(x[ic]), 1e-12)):
+            q_old, x_stage = x[iq].copy(), x.copy()
+            x, cov_q, q_info, (r, J, pred, ok, Jc) = structure(r, J)
             if np.max(np.abs(x[iq] - q_old)) > 0.1:
                 redo = True
-            r, J, pred, ok, Jc = linearise(x)
         if lam is None:
             new = choose(J, r, x, weights)
             if abs(np.log(new.lam / choice.lam)) >= np.log(1.5):
@@ -554,7 +576,7 @@ def fit_rails(
         if not redo:
             break
     if method == "linear":  # residuals of the linear model at the solution
-        r = r + J[:, ic] @ x[ic]
+        r = r + J[:, ic] @ (x[ic] - x_lin[ic])
     # the rails and lead given the structure, then the structure's uncertainty carried in:
     # Cov c = s²H_c⁻¹ + G Cov q Gᵀ, G = ∂ĉ/∂q = −H_c⁻¹J_cᵀJ_q (the delta method)
     Jcc, Jq = J[:, ic], J[:, iq]

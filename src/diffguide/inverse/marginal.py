@@ -8,14 +8,16 @@ straightness data, at 39 ± 4 mm; the rails' error doubled against a fit with th
 structure. The cure is the standard one for such scale-like parameters: estimate ``q`` from
 the *marginal* likelihood, in which the rails are integrated out under their prior,
 
-.. math::  -2\log p(y\,|\,q) = \min_{λ,κ}\Bigl[N'\log Q_q(λ,κ)
-           + \log\det\bigl(I + λ^{-1}L^{-1}J_θ(q)^{T}J_θ(q)L^{-T}\bigr)\Bigr],\qquad
+.. math::  -2\log p(y\,|\,q) = N'\log Q_q(λ)
+           + \log\det\bigl(I + λ^{-1}L^{-1}J_θ(q)^{T}J_θ(q)L^{-T}\bigr),\qquad
            q̂ = \arg\min_q\; -2\log p(y\,|\,q) + ‖q‖²
 
 (the model linearised in the rails at their current estimate, ``J_θ(q)`` its rail Jacobian at
-structure ``q``, ``ΛΩ = λLLᵀ`` the rails' prior precision, the channel zeros and lead terms
+structure ``q``, ``λΩ = λLLᵀ`` the rails' prior precision, the channel zeros and lead terms
 projected out, the noise scale profiled out: :func:`marginal_score`; ``‖q‖²`` the structure's
-prior, ``q`` in units of its prior σ). The log-determinant is what the joint mode lacks: it
+prior, ``q`` in units of its prior σ). The prior's weight and shape are held while ``q`` moves
+(the objective is then smooth in ``q``) and chosen again at ``q̂`` (the fit alternates).
+The log-determinant is what the joint mode lacks: it
 charges a structure for every direction in which it makes the data more sensitive to the rails.
 ``q`` has one or two components, so :func:`maximise_marginal` takes Newton steps on central
 differences; the curvature there gives the Laplace approximation of ``q``'s posterior,
@@ -26,23 +28,21 @@ import logging
 
 import numpy as np
 
-from .weight import _Spectrum, choose_prior
+from .weight import _Spectrum
 
 _log = logging.getLogger("diffguide")
 #: Central-difference step in ``q`` (units of the prior σ).
 STEP = 0.3
 #: Newton iterations at most; a step shorter than :data:`TOL` (prior σ) ends them.
 MAX_ITER = 6
-TOL = 0.05
+TOL = 0.1
 
 
-def marginal_score(J, y, Omega_curv, Omega_amp, n_eff: int, lam: float | None = None) -> float:
+def marginal_score(J, y, Omega, n_eff: int, lam: float) -> float:
     """``-2 log p(y | q)`` (up to a constant) of the whitened linearised problem ``y ≈ Jθ``
-    under the prior ``λ(Ω_curv + κΩ_amp)``: minimised over λ and κ (:func:`.weight.choose_prior`)
-    or, for a given ``lam``, at that λ with κ = 1."""
-    if lam is None:
-        return float(choose_prior(J, y, Omega_curv, Omega_amp, n_eff, "ml").score)
-    sp = _Spectrum(np.asarray(J, float), np.asarray(y, float), Omega_curv + Omega_amp)
+    under the prior precision ``λΩ``, the noise scale profiled out (:mod:`.weight`'s marginal
+    likelihood at the given λ): smooth in ``J`` and ``y``, hence in ``q``."""
+    sp = _Spectrum(np.asarray(J, float), np.asarray(y, float), np.asarray(Omega, float))
     return float(sp.score(float(lam), "ml", n_eff))
 
 
@@ -117,8 +117,10 @@ def maximise_marginal(score, q0, bounds, *, h: float = STEP, max_iter: int = MAX
             if f(q_new) <= f0:
                 break
             delta *= 0.5
-        else:
-            info["message"] = "no step decreased the marginal likelihood's objective further"
+        else:  # at the resolution of the differences: done, unless the step was long
+            if norm > 3 * TOL:
+                info["message"] = ("no step decreased the marginal likelihood's objective "
+                                   "further")
             break
         q = q_new
     else:
