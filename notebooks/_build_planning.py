@@ -68,6 +68,14 @@ print(f"planner: {len(sites)} sites, {len(planner.blocks)} candidate placements,
       f"{time.perf_counter() - t0:.0f} s")
 """),
     md("""
+One planner holds all three instrument kinds, so every plan below is compared with the same
+unknowns. Because straightness optics are among the candidates, the common slope of each plane
+is an unknown here (with its prior), as the fit would treat it with straightness data; a planner
+without straightness candidates fixes it as the fit does for angular data alone, and gives
+somewhat smaller σ for the same angular plans (`diffguide plan` defaults: 0.50 against
+0.56 µm for the two plans below). The reported σ are always of the profiles with their means
+and common slopes removed.
+
 ## The bundled layout against the greedy plan with the same instruments
 
 The bundled data set has two-axis levels at the four corners (±450, ±200) mm and an
