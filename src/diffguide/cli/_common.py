@@ -12,6 +12,14 @@ from pathlib import Path
 
 PRESETS = ("majda2012",)
 
+# One OpenBLAS thread for NumPy and SciPy (and JAX's CPU LAPACK kernels, which call SciPy's):
+# the commands' dense algebra is on matrices of ~10² rows, where threads gain nothing, and on
+# a machine shared with other jobs OpenBLAS's waiting threads stalled it: `diffguide fit` on the
+# bundled data took 105 s instead of 18 s (warm cache, load ≈ 7 on 2 cores; the elastic fit's
+# own NumPy part 62 s → 6 s). OpenBLAS reads this when NumPy is first imported, so it is set
+# here, before any command imports NumPy; set OPENBLAS_NUM_THREADS yourself to override it.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 #: exit statuses of every command (also in the README and each ``--help`` epilogue)
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_NOT_CONVERGED = 0, 1, 2, 3
 
