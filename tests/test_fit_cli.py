@@ -89,9 +89,10 @@ def test_report_against_truth(out_dir):
                                                  for k in ("rail 1 vertical",
                                                            "rail 2 vertical")])), rel=0.02)
     assert err < 0.15 * np.sqrt(np.mean(true_v**2))
-    # the elastic fit beats the rigid-table inversion on the same data
+    # the elastic fit beats the rigid-table inversion on the same data, with the structure
+    # estimated (by 4x with the structure known: test_inverse.py)
     rms = truth["rms_error_um"]
-    assert rms["elastic"]["all"] < 0.5 * rms["rigid_table"]["all"]
+    assert rms["elastic"]["all"] < 0.8 * rms["rigid_table"]["all"]
     assert truth["coverage_2sigma"]["elastic"] >= 0.9
     th = el["structure"]["thickness"]  # the data were simulated at 50 mm (a finer mesh)
     assert abs(th["value"] - 50.0) <= 2 * th["sigma"] and th["determined_by_data"]
