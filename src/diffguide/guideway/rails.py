@@ -110,17 +110,12 @@ class BumpRail(AbstractRailProfile):
         )
 
 
-def bspline_basis(u: Float[Array, "..."], n_coeffs: int) -> tuple[Array, Array]:
-    """Uniform cubic B-spline basis at knot-space coordinates ``u`` (segment ``i`` is ``[i, i+1)``).
-
-    Returns ``(index, weights)``: the first of the four coefficients that act at ``u`` and their
-    weights, shapes ``(...,)`` and ``(..., 4)``. Outside ``[0, n_coeffs − 3]`` the end segment's
-    cubic is continued (smooth extrapolation).
-    """
+def _basis(xp, u, n_coeffs: int):
+    """:func:`bspline_basis` in the array namespace ``xp`` (``numpy`` or ``jax.numpy``)."""
     n_seg = n_coeffs - 3
-    i = jnp.clip(jnp.floor(u), 0, n_seg - 1).astype(int)
+    i = xp.clip(xp.floor(u), 0, n_seg - 1).astype(int)
     t = u - i
-    w = jnp.stack(
+    w = xp.stack(
         [
             (1 - t) ** 3 / 6,
             (3 * t**3 - 6 * t**2 + 4) / 6,
@@ -132,13 +127,26 @@ def bspline_basis(u: Float[Array, "..."], n_coeffs: int) -> tuple[Array, Array]:
     return i, w
 
 
+def bspline_basis(u: Float[Array, "..."], n_coeffs: int) -> tuple[Array, Array]:
+    """Uniform cubic B-spline basis at knot-space coordinates ``u`` (segment ``i`` is ``[i, i+1)``).
+
+    Returns ``(index, weights)``: the first of the four coefficients that act at ``u`` and their
+    weights, shapes ``(...,)`` and ``(..., 4)``. Outside ``[0, n_coeffs − 3]`` the end segment's
+    cubic is continued (smooth extrapolation).
+    """
+    return _basis(jnp, u, n_coeffs)
+
+
 def bspline_matrix(s, start: float, spacing: float, n_coeffs: int) -> np.ndarray:
-    """Dense collocation matrix ``B[i, k]`` of the uniform cubic B-spline at points ``s`` (m)."""
+    """Dense collocation matrix ``B[i, k]`` of the uniform cubic B-spline at points ``s`` (m).
+
+    Evaluated in NumPy (the same formula as :func:`bspline_basis`): eager JAX operations here
+    would compile a small program for every new length of ``s``."""
     u = (np.asarray(s, dtype=float) - start) / spacing
-    idx, w = bspline_basis(jnp.asarray(u), n_coeffs)
+    idx, w = _basis(np, u, n_coeffs)
     B = np.zeros((len(u), n_coeffs))
     for k in range(4):
-        np.add.at(B, (np.arange(len(u)), np.asarray(idx) + k), np.asarray(w[:, k]))
+        np.add.at(B, (np.arange(len(u)), idx + k), w[:, k])
     return B
 
 
