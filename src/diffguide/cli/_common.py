@@ -80,6 +80,12 @@ def add_machine_arguments(p) -> None:
     )
 
 
+def say(args, text: str) -> None:
+    """Print a progress line unless ``--quiet``."""
+    if not args.quiet:
+        print(text, flush=True)
+
+
 def machine_config(args) -> dict:
     """The validated configuration chosen by ``--config`` or ``--preset``."""
     from ..io.config import default_config, load_config

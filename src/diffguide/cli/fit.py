@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._common import say
+
 PRESETS = ("majda2012",)
 _S_STEP_MM = 2.0
 #: Exit code when the results are written but the elastic fit did not converge.
@@ -109,11 +111,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
     return p
-
-
-def _say(args, text):
-    if not args.quiet:
-        print(text, flush=True)
 
 
 def _check_inputs(meas, args, cfg):
@@ -338,11 +335,11 @@ def run(args) -> int:
     info: dict = {}
     meas = read_any(args.measurements, args.layout, args.x0_mm, notes, info)
     for n in notes:
-        _say(args, f"note: {n}")
+        say(args, f"note: {n}")
     _check_inputs(meas, args, cfg)
     priors = structure_priors(args, cfg)
     lines = ", ".join(map(str, meas.rejected[:10])) + (" ..." if len(meas.rejected) > 10 else "")
-    _say(args, f"{args.measurements}: {len(meas.readings)} readings -> {meas.n} merged rows in "
+    say(args, f"{args.measurements}: {len(meas.readings)} readings -> {meas.n} merged rows in "
                f"{len(meas.channels)} channels at {len(np.unique(meas.position))} positions"
                + (f"; {len(meas.rejected)} outlying readings set aside (lines {lines})"
                   if meas.rejected else ""))
@@ -351,20 +348,20 @@ def run(args) -> int:
     def make_machine(**kw):
         return build_machine(spec, nx=args.nx, ny=args.ny, points=points, **kw)
 
-    family = MachineFamily.build(make_machine, priors, progress=lambda t: _say(args, t))
+    family = MachineFamily.build(make_machine, priors, progress=lambda t: say(args, t))
     machine = family.base
     spacing = None if args.knot_spacing_mm is None else args.knot_spacing_mm * 1e-3
     fits, seconds = {}, {}
     models = [("", family)] + ([] if args.no_rigid else [("_rigid", machine.with_rigid_table())])
     for label, m in models:
         t = time.perf_counter()
-        _say(args, f"{'rigid-table' if label else 'elastic'} fit: compiling and solving ...")
+        say(args, f"{'rigid-table' if label else 'elastic'} fit: compiling and solving ...")
         fits[label] = fit_rails(m, meas, knot_spacing=spacing, lam=args.lam,
                                 criterion=fit_settings(args, cfg)[1], max_steps=args.max_steps,
                                 method="linear" if label else "lm")
         seconds[label] = time.perf_counter() - t
         f = fits[label]
-        _say(args, f"{'rigid-table' if label else 'elastic'} fit: chi2/dof = {f.chi2_dof:.3f} "
+        say(args, f"{'rigid-table' if label else 'elastic'} fit: chi2/dof = {f.chi2_dof:.3f} "
                    f"(dof {f.dof:.1f}), lambda {f.lam:.3g} ({f.weight.criterion}), "
                    f"{f.edf:.1f} effective parameters, {f.steps} LM steps, {f.message}, "
                    f"{seconds[label]:.1f} s")
@@ -372,7 +369,7 @@ def run(args) -> int:
             val, sd = ((v["value"] * 1e3, v["sigma"] * 1e3) if name == "thickness"
                        else (v["value"] * 100, v["sigma"] * 100))
             unit = "mm" if name == "thickness" else "% of C"
-            _say(args, f"  {name}: {val:.3g} ± {sd:.2g} {unit}"
+            say(args, f"  {name}: {val:.3g} ± {sd:.2g} {unit}"
                        + ("" if v["determined"] else " (not determined by the data: prior)"))
     elastic = fits[""]
     basis = elastic.basis
@@ -431,10 +428,10 @@ def run(args) -> int:
         _export_compensation(args, cfg, points, elastic, family, info.get("x0_mm", 0.0))
     if args.truth:
         e = report["truth"]["rms_error_um"]
-        _say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
+        say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
              + (", rigid table {:.3f} µm".format(e["rigid_table"]["all"]) if "_rigid" in fits
                 else ""))
-    _say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
+    say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
     if not elastic.converged:
         print(f"diffguide fit: warning: the fit did not converge ({elastic.message}); the results "
               f"in {args.out}/ are the best estimate so far and are flagged in report.json",
@@ -543,7 +540,7 @@ def _export_compensation(args, cfg, measured_points, fit, family, x0_mm=0.0) -> 
     for suffix, text in files.items():
         path = base if not suffix else base.with_name(base.stem + suffix)
         atomic_write_text(path, text)
-        _say(args, f"wrote {path} (point {args.at}, {args.comp_format})")
+        say(args, f"wrote {path} (point {args.at}, {args.comp_format})")
     for w in location_warnings(errs, je.point_names, np.asarray(je.points_xy), args.at,
                                args.tol_um, args.tol_urad):
         print(f"diffguide fit: warning: {w}", file=sys.stderr)

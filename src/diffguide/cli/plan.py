@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._common import say
+
 QUANTITY_CHOICES = {
     "level": ("EBX", "EAX"),
     "interferometer": ("EBX", "ECX"),
@@ -146,58 +148,25 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="prior rail draws at which the experiment is linearised (default 8)",
     )
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
-    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
     return p
 
 
-def _say(args, text):
-    if not args.quiet:
-        print(text, flush=True)
+def _rows(path, required, optional=()):
+    """The data rows of a small CSV (:func:`diffguide.io.csvtable.read_table`: comments, blank
+    lines, separators and one-line errors as for every input file)."""
+    from ..io.csvtable import read_table
 
-
-def _read_csv(path, columns):
-    """Rows of a small CSV with a header holding ``columns`` (comments '#' and blank lines
-    skipped); ``ValueError`` naming the file and line otherwise."""
-    import csv
-
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot read ({exc.strerror})") from None
-    lines = [
-        (k + 1, ln)
-        for k, ln in enumerate(text.splitlines())
-        if ln.strip() and not ln.lstrip().startswith("#")
-    ]
-    if not lines:
-        raise ValueError(f"{path}: empty")
-    header = [h.strip() for h in next(csv.reader([lines[0][1]]))]
-    missing = [c for c in columns if c not in header]
-    if missing:
-        raise ValueError(
-            f"{path}:{lines[0][0]}: missing column(s) {', '.join(missing)} "
-            f"(need {','.join(columns)})"
-        )
-    rows = []
-    for line, text in lines[1:]:
-        vals = [v.strip() for v in next(csv.reader([text]))]
-        if len(vals) != len(header):
-            raise ValueError(f"{path}:{line}: {len(vals)} fields, the header has {len(header)}")
-        rows.append((line, dict(zip(header, vals))))
+    rows = read_table(path, required, optional)
     if not rows:
         raise ValueError(f"{path}: no rows")
     return rows
 
 
 def _number(path, line, row, key):
-    try:
-        v = float(row[key])
-    except ValueError:
-        raise ValueError(f"{path}:{line}: field {key!r}: not a number: {row[key]!r}") from None
-    if not np.isfinite(v):
-        raise ValueError(f"{path}:{line}: field {key!r}: must be finite")
-    return v
+    from ..io.csvtable import number
+
+    return number(row, key, str(path), line, "mm")
 
 
 def _on_table(name, x, y, cfg, where):
@@ -215,7 +184,7 @@ def _sites(args, cfg) -> dict:
 
     if args.sites:
         out = {}
-        for line, row in _read_csv(args.sites, ("name", "x_mm", "y_mm")):
+        for line, row in _rows(args.sites, ("name", "x_mm", "y_mm")):
             x, y = (_number(args.sites, line, row, k) for k in ("x_mm", "y_mm"))
             name = row["name"]
             if not name or name in out:
@@ -247,7 +216,7 @@ def _compare(args, cfg, sites):
         where = "bundled layout"
     else:
         rows = []
-        for line, row in _read_csv(args.compare, ("instrument", "x_mm", "y_mm")):
+        for line, row in _rows(args.compare, ("instrument", "x_mm", "y_mm"), ("point",)):
             kind = row["instrument"]
             if kind not in QUANTITY_CHOICES:
                 raise ValueError(
@@ -412,7 +381,7 @@ def run(args) -> int:
     def make_machine(**kw):
         return build_machine(spec, points=sites, **kw)
 
-    _say(
+    say(
         args,
         f"plan: {len(candidates)} candidate sites, "
         + ", ".join(
@@ -423,7 +392,7 @@ def run(args) -> int:
         + f"; {args.positions} positions x {args.runs} runs"
         + ("" if args.unidirectional else " x 2 directions"),
     )
-    family = MachineFamily.build(make_machine, priors, progress=lambda t: _say(args, t))
+    family = MachineFamily.build(make_machine, priors, progress=lambda t: say(args, t))
     result = plan(
         family,
         positions,
@@ -435,10 +404,10 @@ def run(args) -> int:
         bidirectional=not args.unidirectional,
         candidates=candidates,
         work_point=work,
-        progress=lambda t: _say(args, t),
+        progress=lambda t: say(args, t),
         n_draws=args.draws,
     )
-    _say(
+    say(
         args,
         f"plan: worst profile σ {result.best.worst * 1e6:.3f} µm"
         + (f" (your plan: {result.compare.worst * 1e6:.3f} µm)" if compare else "")
@@ -494,7 +463,7 @@ def run(args) -> int:
     report["total_seconds"] = time.perf_counter() - t_start
     files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
     _write_dir(Path(args.out), files)
-    _say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
+    say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
     return 0
 
 

@@ -503,7 +503,8 @@ def fit_rails(
         xf = x.copy()
         xf[ic] = xc
         out = linearise(xf)
-        recent.clear() if len(recent) > 4 else None
+        if len(recent) > 4:
+            recent.clear()
         recent[xc.tobytes()] = out
         return out[0], (out[1][:, ic] if out[1] is not None else None), *out[2:]
 

@@ -96,7 +96,8 @@ def maximise_marginal(score, q0, bounds, *, h: float = STEP, max_iter: int = MAX
     cov = np.eye(q.size)
     for it in range(1, max_iter + 1):
         info["iterations"] = it
-        f0, g, H = _stencil(f, q, h)
+        with np.errstate(invalid="ignore"):  # inf − inf where the model failed: caught below
+            f0, g, H = _stencil(f, q, h)
         if not (np.isfinite(f0) and np.all(np.isfinite(g)) and np.all(np.isfinite(H))):
             info["message"] = ("the model failed near the structure estimate; its uncertainty "
                                "is the prior's")
