@@ -514,6 +514,40 @@ def run_fit(case: Case, meas=None):
     return fit_rails(fit_machine(points), meas)
 
 
+def oracle_machine(case: Case, points: dict[str, tuple[float, float]]):
+    """The fit's model (the preset's 20 × 10 mesh) told the truth machine's structure: the
+    case's thickness and preload (the preset's where the case keeps them), held fixed."""
+    from diffguide.machine.majda2012 import majda2012_machine
+
+    key = ("oracle", case.thickness, case.preload, _points_key(points))
+    if key not in _MACHINES:
+        _MACHINES[key] = majda2012_machine(
+            points=points, thickness=case.thickness, preload_fraction=case.preload
+        )
+    return _MACHINES[key]
+
+
+_ORACLES: dict = {}
+
+
+def oracle_score(name: str):
+    """Score of the **oracle** fit of case ``name``: the same data and fit, but with the truth's
+    structure known (:func:`oracle_machine`) — what the layout and noise allow when nothing
+    about the machine is unknown, the reference for what estimating the structure costs."""
+    from diffguide.inverse import fit_rails
+
+    from .score import score_fit
+
+    if name not in _ORACLES:
+        res = result(name)
+        case = res.case
+        meas = measurements(case)
+        points = dict(zip(meas.point_names, map(tuple, np.asarray(meas.points_xy, float))))
+        fit = fit_rails(oracle_machine(case, points), meas)
+        _ORACLES[name] = score_fit(fit, lambda s: truth_profiles(case, s))
+    return _ORACLES[name]
+
+
 @dataclasses.dataclass
 class CaseResult:
     """A case run end to end: the fit (``None`` when it raised: ``error``) and its score."""
