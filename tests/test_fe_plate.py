@@ -191,7 +191,9 @@ def test_membrane_patch_test(angles):
     fixed = [6 * k + (0 if kind == "t" else 3) + d for k, kind, d in local_fixed]
     ul_sol = np.asarray(solve_fixed(jnp.asarray(Kl), jnp.zeros(48), np.array(fixed),
                                     jnp.asarray(exact_l.ravel()[fixed])))
-    assert np.max(np.abs(ul_sol - exact_l.ravel())) < 1e-12 * np.max(np.abs(exact_l))
+    # 1e-11: rounding only (the weak drilling penalty amplifies it; the rotated patch gave
+    # 0.9e-12 and 2.2e-12 with element matrices that agree to 5e-16)
+    assert np.max(np.abs(ul_sol - exact_l.ravel())) < 1e-11 * np.max(np.abs(exact_l))
 
 
 def test_bending_patch_test():

@@ -1,9 +1,10 @@
-"""Element matrices of a table mesh (vmapped), scattering into global arrays, loads, supports.
+"""Element matrices of a table mesh (batched), scattering into global arrays, loads, supports.
 
 "Assembly" here is the FE sense: element matrices scattered (``.at[].add``) into a dense global
 matrix. Global DOF order: node by node, ``6 * node + k`` with ``k`` in ``(ux, uy, uz, rx, ry, rz)``
 (m, rad); forces in N and moments in N·m in the same order. Nothing here is a Python loop over
-elements: the element routines are ``jax.vmap``-ed and the whole assembly is ``jax.jit``-ed.
+elements: the element routines take all elements of a kind in one batched call, and the whole
+assembly is ``jax.jit``-ed (:func:`element_arrays_xp` also evaluates them eagerly in NumPy).
 Differentiable w.r.t. thickness, E, ν, ρ, rib sizes and node coordinates.
 """
 
@@ -13,10 +14,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float, ScalarLike
+from ._xp import memo
 from .beam import beam_load, beam_stiffness, rect_section
 from .materials import CAST_IRON, Material
 from .mesh import TableMesh
-from .shell import shell_load, shell_stiffness
+from .shell import shell_load, shell_matrices, shell_stiffness
 
 #: DOF names in node order.
 DOF_NAMES = ("ux", "uy", "uz", "rx", "ry", "rz")
@@ -55,14 +57,14 @@ class ElementArrays(eqx.Module):
     f: Array  # (n_el, 6 n)
 
 
-def _rib_arrays(mesh: TableMesh, plate: PlateSection):
+def _rib_arrays(mesh: TableMesh, plate: PlateSection, xp=jnp):
     """Per-rib E, G, rho, width, depth (stacked)."""
     mats = [r.material if r.material is not None else plate.material for r in mesh.ribs]
-    E = jnp.stack([jnp.asarray(m.E, dtype=float) for m in mats])
-    nu = jnp.stack([jnp.asarray(m.nu, dtype=float) for m in mats])
-    rho = jnp.stack([jnp.asarray(m.rho, dtype=float) for m in mats])
-    w = jnp.stack([jnp.asarray(r.width, dtype=float) for r in mesh.ribs])
-    d = jnp.stack([jnp.asarray(r.depth, dtype=float) for r in mesh.ribs])
+    E = xp.stack([xp.asarray(m.E, dtype=float) for m in mats])
+    nu = xp.stack([xp.asarray(m.nu, dtype=float) for m in mats])
+    rho = xp.stack([xp.asarray(m.rho, dtype=float) for m in mats])
+    w = xp.stack([xp.asarray(r.width, dtype=float) for r in mesh.ribs])
+    d = xp.stack([xp.asarray(r.depth, dtype=float) for r in mesh.ribs])
     return E, E / (2 * (1 + nu)), rho, w, d
 
 
@@ -103,34 +105,45 @@ def element_arrays(
     return _element_arrays(mesh, plate, nodes, gravity, sl)
 
 
-@eqx.filter_jit
-def _element_arrays(mesh, plate, nodes, gravity, surface_load):
-    xyz = jnp.asarray(mesh.nodes if nodes is None else nodes, dtype=float)
-    t = jnp.asarray(plate.thickness, dtype=float)
+def element_arrays_xp(mesh, plate, nodes, gravity, surface_load, xp=jnp):
+    """:func:`element_arrays` for the array module ``xp`` (:mod:`jax.numpy`: traceable;
+    :mod:`numpy`: eager, for concrete inputs), all elements of a kind in one batched call."""
+    xyz = xp.asarray(mesh.nodes if nodes is None else nodes, dtype=float)
+    t = xp.asarray(plate.thickness, dtype=float)
     mat = plate.material
-    quads = jnp.asarray(mesh.quads)
+    quads = xp.asarray(mesh.quads)
     exyz = xyz[quads]
-    Ks = jax.vmap(lambda x: shell_stiffness(x, t, mat.E, mat.nu, plate.kappa, plate.drill))(exyz)
-    zero = jnp.zeros((), dtype=float)
-    traction = jnp.stack([zero, zero, -gravity * mat.rho * t]) + surface_load
-    fs = jax.vmap(lambda x: shell_load(x, traction))(exyz)
+    if xp is np:  # K(t) = t K₁ + t³ K₃: K₁, K₃ shared by the thicknesses of a family
+        args = (exyz, mat.E, mat.nu, plate.kappa, plate.drill)
+        K1, K3 = memo("shell", args, lambda: shell_matrices(*args, xp=np), size=1)
+        Ks = t * K1 + t**3 * K3
+    else:
+        Ks = shell_stiffness(exyz, t, mat.E, mat.nu, plate.kappa, plate.drill, xp=xp)
+    zero = xp.zeros((), dtype=float)
+    traction = xp.stack([zero, zero, -gravity * mat.rho * t]) + surface_load
+    fs = shell_load(exyz, traction, xp=xp)
     out = [ElementArrays(conn=quads, K=Ks, f=fs)]
     if mesh.beams.shape[0] > 0:
-        E, G, rho, w, d = _rib_arrays(mesh, plate)
-        k = jnp.asarray(mesh.beam_rib)
+        E, G, rho, w, d = _rib_arrays(mesh, plate, xp)
+        k = xp.asarray(mesh.beam_rib)
         E, G, rho, w, d = E[k], G[k], rho[k], w[k], d[k]
-        sec = rect_section(w, d)
-        zeros = jnp.zeros_like(d)
-        off = jnp.stack([zeros, zeros, -(0.5 * t + 0.5 * d)], axis=1)
-        beams = jnp.asarray(mesh.beams)
+        sec = rect_section(w, d, xp=xp)
+        zeros = xp.zeros_like(d)
+        off = xp.stack([zeros, zeros, -(0.5 * t + 0.5 * d)], axis=1)
+        beams = xp.asarray(mesh.beams)
         bxyz = xyz[beams]
-        Kb = jax.vmap(
-            lambda x, E, G, A, Iy, Iz, J, e: beam_stiffness(x, E, G, A, Iy, Iz, J, 5.0 / 6.0, e)
-        )(bxyz, E, G, sec["A"], sec["Iy"], sec["Iz"], sec["J"], off)
-        q = jnp.stack([zeros, zeros, -gravity * rho * sec["A"]], axis=1)
-        fb = jax.vmap(beam_load)(bxyz, q, off)
+        Kb = beam_stiffness(
+            bxyz, E, G, sec["A"], sec["Iy"], sec["Iz"], sec["J"], 5.0 / 6.0, off, xp=xp
+        )
+        q = xp.stack([zeros, zeros, -gravity * rho * sec["A"]], axis=1)
+        fb = beam_load(bxyz, q, off, xp=xp)
         out.append(ElementArrays(conn=beams, K=Kb, f=fb))
     return tuple(out)
+
+
+@eqx.filter_jit
+def _element_arrays(mesh, plate, nodes, gravity, surface_load):
+    return element_arrays_xp(mesh, plate, nodes, gravity, surface_load, jnp)
 
 
 def element_dofs(conn: Array) -> Array:

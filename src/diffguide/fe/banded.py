@@ -36,6 +36,10 @@ columns of ``D`` are replaced by the identity and decoupled, which leaves the ot
 exact and gives zero there), and the element entries that touch them go to the interior–interface
 coupling ``K_ib`` (per block, ``(n_b, s, m)``) and to ``K_bb`` (``(m, m)``). Element matrices are
 scattered straight into these arrays; the dense global matrix is never formed.
+
+Every function takes an array module ``xp``: :mod:`jax.numpy` (default; ``lax.scan`` loops,
+traceable) or :mod:`numpy` (eager, Python loops over the blocks; for concrete inputs, where
+tracing and compiling would cost seconds for a one-time computation).
 """
 
 import equinox as eqx
@@ -44,6 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float
+from ._xp import memo
 
 
 class BlockLayout(eqx.Module):
@@ -79,38 +84,38 @@ class BlockLayout(eqx.Module):
         if np.any(blk.max(axis=1) - blk.min(axis=1) > 1):
             raise ValueError("an element joins nodes more than one block apart: not a tensor grid")
 
-    def _dofs(self, conn):
+    def _dofs(self, conn, xp=jnp):
         """Per element DOF (n_el, 6k): slave flag, block, in-block index, interface index."""
-        node = jnp.repeat(jnp.asarray(conn), 6, axis=1)
-        d = jnp.tile(jnp.arange(6), conn.shape[1])
-        own = jnp.asarray(self.owner)[node]
-        blk = jnp.asarray(self.node_block)[node]
-        loc = 6 * jnp.asarray(self.node_pos)[node] + d
-        return own >= 0, blk, loc, 6 * jnp.maximum(own, 0) + d
+        node = xp.repeat(xp.asarray(conn), 6, axis=1)
+        d = xp.tile(xp.arange(6), conn.shape[1])
+        own = xp.asarray(self.owner)[node]
+        blk = xp.asarray(self.node_block)[node]
+        loc = 6 * xp.asarray(self.node_pos)[node] + d
+        return own >= 0, blk, loc, 6 * xp.maximum(own, 0) + d
 
-    def matrix_index(self, conn) -> Array:
+    def matrix_index(self, conn, xp=jnp) -> Array:
         """Flat target (n_el, 6k, 6k) of each element-matrix entry in ``[D, C, K_ib, K_bb]``
         (raveled, concatenated); ``n_entries`` (out of range: dropped) for the entries the
         symmetric storage does not keep (upper block ``C^T`` and interface–interior ``K_bi``).
         Integer arithmetic on the connectivity, traceable (it runs inside the compiled
         condensation)."""
-        sl, blk, loc, bi = self._dofs(conn)
+        sl, blk, loc, bi = self._dofs(conn, xp)
         s, m = self.block_size, self.m
         oD, oC, oB, oBB = self.offsets
         r = lambda a: a[:, :, None]
         c = lambda a: a[:, None, :]
         ii = ~r(sl) & ~c(sl)
-        idx = jnp.where(ii & (r(blk) == c(blk)), oD + (r(blk) * s + r(loc)) * s + c(loc), -1)
-        idx = jnp.where(ii & (r(blk) == c(blk) + 1), oC + (c(blk) * s + r(loc)) * s + c(loc), idx)
-        idx = jnp.where(~r(sl) & c(sl), oB + (r(blk) * s + r(loc)) * m + c(bi), idx)
-        idx = jnp.where(r(sl) & c(sl), oBB + r(bi) * m + c(bi), idx)
-        return jnp.where(idx < 0, self.n_entries, idx)
+        idx = xp.where(ii & (r(blk) == c(blk)), oD + (r(blk) * s + r(loc)) * s + c(loc), -1)
+        idx = xp.where(ii & (r(blk) == c(blk) + 1), oC + (c(blk) * s + r(loc)) * s + c(loc), idx)
+        idx = xp.where(~r(sl) & c(sl), oB + (r(blk) * s + r(loc)) * m + c(bi), idx)
+        idx = xp.where(r(sl) & c(sl), oBB + r(bi) * m + c(bi), idx)
+        return xp.where(idx < 0, self.n_entries, idx)
 
-    def vector_index(self, conn) -> Array:
+    def vector_index(self, conn, xp=jnp) -> Array:
         """Flat target (n_el, 6k) of each element-vector entry in ``[f_i (n_b s), f_b (m)]``."""
-        sl, blk, loc, bi = self._dofs(conn)
+        sl, blk, loc, bi = self._dofs(conn, xp)
         s = self.block_size
-        return jnp.where(sl, self.n_blocks * s + bi, blk * s + loc)
+        return xp.where(sl, self.n_blocks * s + bi, blk * s + loc)
 
     def node_index(self):
         """(n_nodes,) row of each node in the interior solution reshaped (n_b · nper, 6, ·)."""
@@ -150,7 +155,31 @@ def block_layout(n_lines_x: int, n_lines_y: int, owner: np.ndarray, n_patches: i
     )
 
 
-def assemble_blocks(layout: BlockLayout, parts):
+def scatter_add(n: int, idx, values, xp=jnp):
+    """A vector of length ``n`` holding the sums of ``values`` at the flat indices ``idx``
+    (equal shapes); indices ``>= n`` are dropped."""
+    idx, values = xp.ravel(idx), xp.ravel(values)
+    if xp is np:
+        return np.bincount(idx, weights=values, minlength=n + 1)[:n]
+    return jnp.zeros(n, values.dtype).at[idx].add(values, mode="drop")
+
+
+def scan(f, init, xs, xp=jnp, reverse: bool = False):
+    """``jax.lax.scan(f, init, xs, reverse=reverse)``, or the same loop in Python for NumPy
+    (``xs`` a tuple of arrays, ``f`` returning ``(carry, y)`` with ``y`` an array or a tuple)."""
+    if xp is not np:
+        return jax.lax.scan(f, init, xs, reverse=reverse)
+    n = xs[0].shape[0]
+    ys = [None] * n
+    carry = init
+    for i in range(n - 1, -1, -1) if reverse else range(n):
+        carry, ys[i] = f(carry, tuple(x[i] for x in xs))
+    if n and isinstance(ys[0], tuple):
+        return carry, tuple(np.stack(c) for c in zip(*ys))
+    return carry, np.stack(ys)
+
+
+def assemble_blocks(layout: BlockLayout, parts, xp=jnp):
     """Scatter element matrices into the block storage.
 
     Args:
@@ -164,16 +193,22 @@ def assemble_blocks(layout: BlockLayout, parts):
         ``K_ib`` (n_b, s, m), ``K_bb`` (m, m), ``f_i`` (n_b, s), ``f_b`` (m,).
     """
     nb, s, m = layout.n_blocks, layout.block_size, layout.m
-    buf, fbuf = None, None
-    for conn, Ke, fe in parts:
-        if buf is None:
-            buf = jnp.zeros(layout.n_entries, Ke.dtype)
-            fbuf = jnp.zeros(nb * s + m, fe.dtype)
-        buf = buf.at[layout.matrix_index(conn).ravel()].add(Ke.ravel(), mode="drop")
-        fbuf = fbuf.at[layout.vector_index(conn).ravel()].add(fe.ravel())
+
+    def index():
+        return xp.concatenate([xp.ravel(layout.matrix_index(conn, xp)) for conn, _, _ in parts])
+
+    if xp is np:  # the same for every thickness of a family
+        inputs = jax.tree_util.tree_leaves(layout) + [conn for conn, _, _ in parts]
+        idx = memo("matrix_index", inputs + list(layout.offsets), index)
+    else:
+        idx = index()
+    vals = xp.concatenate([xp.ravel(Ke) for _, Ke, _ in parts])
+    buf = scatter_add(layout.n_entries, idx, vals, xp)
+    idx = xp.concatenate([xp.ravel(layout.vector_index(conn, xp)) for conn, _, _ in parts])
+    fbuf = scatter_add(nb * s + m, idx, xp.concatenate([xp.ravel(fe) for _, _, fe in parts]), xp)
     oD, oC, oB, oBB = layout.offsets
     D = buf[oD:oC].reshape(nb, s, s)
-    D = D + jnp.asarray(layout.slave_dof, D.dtype)[:, :, None] * jnp.eye(s, dtype=D.dtype)
+    D = D + xp.asarray(layout.slave_dof, D.dtype)[:, :, None] * xp.eye(s, dtype=D.dtype)
     C = buf[oC:oB].reshape(nb - 1, s, s)
     Kib = buf[oB:oBB].reshape(nb, s, m)
     Kbb = buf[oBB:].reshape(m, m)
@@ -194,7 +229,16 @@ def matvec(D: Float[Array, "nb s s"], C: Float[Array, "nb1 s s"], X: Float[Array
 LEAF = 32
 
 
-def inverse_factor(A: Float[Array, "n n"]) -> Float[Array, "n n"]:
+def _lower_inverse(L: np.ndarray) -> np.ndarray:
+    """``L⁻¹`` of a lower-triangular NumPy matrix, as ``((Lᵀ)⁻¹)ᵀ``: ``numpy.linalg`` has no
+    triangular solver, and its LU with row pivoting applied to ``L`` itself swaps rows (it lost
+    1e-10 relative on the table's blocks); applied to the upper-triangular ``Lᵀ`` it finds
+    nothing to pivot or eliminate (every column is already zero below the diagonal), so the
+    solve is plain back substitution."""
+    return np.linalg.solve(L.T, np.eye(L.shape[0], dtype=L.dtype)).T
+
+
+def inverse_factor(A: Float[Array, "n n"], xp=jnp) -> Float[Array, "n n"]:
     r"""``L⁻¹`` for the Cholesky factor ``L L^T = A`` of an SPD matrix, recursively:
 
     .. math::
@@ -208,36 +252,38 @@ def inverse_factor(A: Float[Array, "n n"]) -> Float[Array, "n n"]:
     go to LAPACK (``potrf``, then ``trsm`` against the identity). ``n³`` flops, mostly in
     matrix products."""
     n = A.shape[0]
-    if n <= LEAF:
-        L = jnp.linalg.cholesky(A)
-        eye = jnp.eye(n, dtype=A.dtype)
+    if n <= LEAF or xp is np:  # NumPy: one block (no compilation to save; fewer Python calls)
+        L = xp.linalg.cholesky(A)
+        eye = xp.eye(n, dtype=A.dtype)
+        if xp is np:
+            return _lower_inverse(L)
         return jax.lax.linalg.triangular_solve(L, eye, left_side=True, lower=True)
     k = n // 2
-    M11 = inverse_factor(A[:k, :k])
+    M11 = inverse_factor(A[:k, :k], xp)
     L21 = A[k:, :k] @ M11.T
-    M22 = inverse_factor(A[k:, k:] - L21 @ L21.T)
+    M22 = inverse_factor(A[k:, k:] - L21 @ L21.T, xp)
     M21 = -(M22 @ (L21 @ M11))
-    return jnp.block([[M11, jnp.zeros((k, n - k), A.dtype)], [M21, M22]])
+    return xp.block([[M11, xp.zeros((k, n - k), A.dtype)], [M21, M22]])
 
 
-def cholesky(D: Float[Array, "nb s s"], C: Float[Array, "nb1 s s"]):
+def cholesky(D: Float[Array, "nb s s"], C: Float[Array, "nb1 s s"], xp=jnp):
     """Block Cholesky factor of the SPD block-tridiagonal ``K`` (module docstring), kept as
     ``(M, W)``: ``M`` (n_b, s, s) the inverses ``L_i⁻¹`` of the lower-triangular diagonal
     blocks (:func:`inverse_factor`), ``W`` (n_b - 1, s, s) the sub-diagonal blocks
     ``W_i = C_{i-1} L_{i-1}^{-T}``."""
-    M0 = inverse_factor(D[0])
+    M0 = inverse_factor(D[0], xp)
 
     def step(Mp, DC):
         Di, Ci = DC
         W = Ci @ Mp.T
-        Mi = inverse_factor(Di - W @ W.T)
+        Mi = inverse_factor(Di - W @ W.T, xp)
         return Mi, (Mi, W)
 
-    _, (Ms, Ws) = jax.lax.scan(step, M0, (D[1:], C))
-    return jnp.concatenate([M0[None], Ms]), Ws
+    _, (Ms, Ws) = scan(step, M0, (D[1:], C), xp)
+    return xp.concatenate([M0[None], Ms]), Ws
 
 
-def cho_solve(factor, B: Float[Array, "nb s k"]) -> Float[Array, "nb s k"]:
+def cho_solve(factor, B: Float[Array, "nb s k"], xp=jnp) -> Float[Array, "nb s k"]:
     """``K⁻¹ B`` from the :func:`cholesky` factor: forward sweep ``y_i = L_i⁻¹ (B_i - W_i
     y_{i-1})``, backward sweep ``x_i = L_i^{-T} (y_i - W_{i+1}^T x_{i+1})`` (matrix products)."""
     M, W = factor
@@ -248,8 +294,8 @@ def cho_solve(factor, B: Float[Array, "nb s k"]) -> Float[Array, "nb s k"]:
         y = Mi @ (Bi - Wi @ yp)
         return y, y
 
-    _, ys = jax.lax.scan(fwd, y0, (M[1:], W, B[1:]))
-    y = jnp.concatenate([y0[None], ys])
+    _, ys = scan(fwd, y0, (M[1:], W, B[1:]), xp)
+    y = xp.concatenate([y0[None], ys])
     xl = M[-1].T @ y[-1]
 
     def bwd(xn, MWy):
@@ -257,13 +303,17 @@ def cho_solve(factor, B: Float[Array, "nb s k"]) -> Float[Array, "nb s k"]:
         x = Mi.T @ (yi - Wn.T @ xn)
         return x, x
 
-    _, xs = jax.lax.scan(bwd, xl, (M[:-1], W, y[:-1]), reverse=True)
-    return jnp.concatenate([xs, xl[None]])
+    _, xs = scan(bwd, xl, (M[:-1], W, y[:-1]), xp, reverse=True)
+    return xp.concatenate([xs, xl[None]])
 
 
-def spd_solve(D: Float[Array, "nb s s"], C: Float[Array, "nb1 s s"], B: Float[Array, "nb s k"]):
+def spd_solve(
+    D: Float[Array, "nb s s"], C: Float[Array, "nb1 s s"], B: Float[Array, "nb s k"], xp=jnp
+):
     """``K⁻¹ B`` for SPD block-tridiagonal ``K``, differentiated as a linear solve (module
     docstring): derivatives w.r.t. ``D``, ``C`` and ``B`` cost one more pair of sweeps."""
+    if xp is np:
+        return cho_solve(cholesky(D, C, np), B, np)
     factor = cholesky(jax.lax.stop_gradient(D), jax.lax.stop_gradient(C))
     return jax.lax.custom_linear_solve(
         lambda x: matvec(D, C, x),

@@ -13,68 +13,81 @@ in one plane, with ``Φ = 12 E I / (κ G A L²)``,
 ``K = E I / ((1 + Φ) L³) [[12, 6L, -12, 6L], [6L, (4+Φ)L², -6L, (2-Φ)L²], ...]``, so a cantilever
 under a tip load deflects exactly ``P L³ / 3 E I + P L / κ G A``.
 
+Every function takes an array module ``xp`` (:mod:`jax.numpy` by default, or :mod:`numpy` for
+an eager evaluation of concrete inputs) and accepts a batch of elements on leading axes.
+
 Offset (eccentric beam, e.g. a rib under a plate): the beam's axis runs at ``node + e`` (global
 vector ``e``, m, the same at both ends) and is tied rigidly to the node:
 ``u_axis = u_node + θ_node × e``, ``θ_axis = θ_node``.
 """
 
 import jax.numpy as jnp
+import numpy as np
 
 from .._core.types import Array, Float, ScalarLike
+from ._xp import congruence, place, skew
 
 
-def beam_frame(xyz: Float[Array, "2 3"]) -> tuple[Float[Array, "3 3"], Float[Array, ""]]:
+def beam_frame(
+    xyz: Float[Array, "... 2 3"], xp=jnp
+) -> tuple[Float[Array, "... 3 3"], Float[Array, "..."]]:
     """Rows e1, e2, e3 of the local frame and the length L (m) of a beam element."""
-    xyz = jnp.asarray(xyz)
-    d = xyz[1] - xyz[0]
-    L = jnp.linalg.norm(d)
-    e1 = d / L
-    ez = jnp.array([0.0, 0.0, 1.0], dtype=d.dtype)
-    ex = jnp.array([1.0, 0.0, 0.0], dtype=d.dtype)
-    ref = jnp.where(jnp.abs(e1[2]) > 0.99, ex, ez)
-    e2 = jnp.cross(ref, e1)
-    e2 = e2 / jnp.linalg.norm(e2)
-    e3 = jnp.cross(e1, e2)
-    return jnp.stack([e1, e2, e3]), L
+    xyz = xp.asarray(xyz)
+    d = xyz[..., 1, :] - xyz[..., 0, :]
+    L = xp.sqrt(xp.sum(d * d, axis=-1))
+    e1 = d / L[..., None]
+    ez = np.array([0.0, 0.0, 1.0])
+    ex = np.array([1.0, 0.0, 0.0])
+    ref = xp.where(xp.abs(e1[..., 2:3]) > 0.99, ex, ez)
+    e2 = xp.cross(ref, e1, axis=-1)
+    e2 = e2 / xp.sqrt(xp.sum(e2 * e2, axis=-1, keepdims=True))
+    e3 = xp.cross(e1, e2, axis=-1)
+    return xp.stack([e1, e2, e3], axis=-2), L
 
 
-def rect_section(width: ScalarLike, depth: ScalarLike) -> dict[str, Array]:
+def rect_section(width: ScalarLike, depth: ScalarLike, xp=jnp) -> dict[str, Array]:
     """Section constants of a solid rectangle, ``width`` along e2 and ``depth`` along e3 (m).
 
     Returns ``A`` (m²), ``Iy = w h³/12`` (about e2), ``Iz = h w³/12`` (about e3) and the torsion
     constant ``J = a b³ (1/3 - 0.21 (b/a)(1 - b⁴/(12 a⁴)))`` with a ≥ b the long and short sides
     (Roark, Table 10.7, within ~4 %).
     """
-    w, h = jnp.asarray(width), jnp.asarray(depth)
-    a, b = jnp.maximum(w, h), jnp.minimum(w, h)
+    w, h = xp.asarray(width), xp.asarray(depth)
+    a, b = xp.maximum(w, h), xp.minimum(w, h)
     J = a * b**3 * (1.0 / 3.0 - 0.21 * (b / a) * (1.0 - b**4 / (12.0 * a**4)))
     return {"A": w * h, "Iy": w * h**3 / 12.0, "Iz": h * w**3 / 12.0, "J": J}
 
 
-def _bending(EI, phi, L, sign):
+def _bending(EI, phi, L, sign, xp=jnp):
     """4×4 Timoshenko bending block for (deflection 1, rotation 1, deflection 2, rotation 2)."""
     c = EI / ((1.0 + phi) * L**3)
     s = sign
-    return c * jnp.array(
-        [
-            [12.0, s * 6 * L, -12.0, s * 6 * L],
-            [s * 6 * L, (4 + phi) * L**2, -s * 6 * L, (2 - phi) * L**2],
-            [-12.0, -s * 6 * L, 12.0, -s * 6 * L],
-            [s * 6 * L, (2 - phi) * L**2, -s * 6 * L, (4 + phi) * L**2],
-        ]
-    )
+    one = xp.ones_like(L)
+    rows = [
+        [12.0 * one, s * 6 * L, -12.0 * one, s * 6 * L],
+        [s * 6 * L, (4 + phi) * L**2, -s * 6 * L, (2 - phi) * L**2],
+        [-12.0 * one, -s * 6 * L, 12.0 * one, -s * 6 * L],
+        [s * 6 * L, (2 - phi) * L**2, -s * 6 * L, (4 + phi) * L**2],
+    ]
+    return c[..., None, None] * xp.stack([xp.stack(r, axis=-1) for r in rows], axis=-2)
 
 
-def _offset_matrix(offset):
+def _offset_matrix(offset, xp=jnp):
     """12×12 map from node DOF to beam-axis DOF: u_axis = u_node + θ × e (for both nodes)."""
-    e = jnp.asarray(offset)
-    ex = jnp.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])  # e × (.)
-    A = jnp.eye(6, dtype=ex.dtype).at[:3, 3:].set(-ex)
-    return jnp.kron(jnp.eye(2, dtype=ex.dtype), A)
+    e = xp.asarray(offset)
+    eye3 = xp.broadcast_to(xp.asarray(np.eye(3)), e.shape[:-1] + (3, 3))
+    A = xp.concatenate(
+        [
+            xp.concatenate([eye3, -skew(e, xp)], axis=-1),
+            xp.concatenate([xp.zeros_like(eye3), eye3], axis=-1),
+        ],
+        axis=-2,
+    )
+    return place(A, range(6), 12, xp) + place(A, range(6, 12), 12, xp)
 
 
 def beam_stiffness(
-    xyz: Float[Array, "2 3"],
+    xyz: Float[Array, "... 2 3"],
     E: ScalarLike,
     G: ScalarLike,
     A: ScalarLike,
@@ -82,8 +95,9 @@ def beam_stiffness(
     Iz: ScalarLike,
     J: ScalarLike,
     kappa: float = 5.0 / 6.0,
-    offset: Float[Array, "3"] | None = None,
-) -> Float[Array, "12 12"]:
+    offset: Float[Array, "... 3"] | None = None,
+    xp=jnp,
+) -> Float[Array, "... 12 12"]:
     """Stiffness (global frame) of a 2-node Timoshenko beam.
 
     Args:
@@ -92,41 +106,44 @@ def beam_stiffness(
         A: area (m²); Iy, Iz: second moments about e2, e3 (m⁴); J: torsion constant (m⁴).
         kappa: shear correction factor (5/6 for a rectangle), the same in both planes.
         offset: global vector (m) from the nodes to the beam axis; None for no offset.
+        xp: array module (:mod:`jax.numpy` or :mod:`numpy`).
 
     Returns:
-        K (12, 12) for ``(ux, uy, uz, rx, ry, rz)`` of node 1 then node 2.
+        K (12, 12) for ``(ux, uy, uz, rx, ry, rz)`` of node 1 then node 2 (leading axes: a batch
+        of elements, the section values broadcasting with it).
     """
-    R, L = beam_frame(xyz)
-    E, G = jnp.asarray(E), jnp.asarray(G)
+    R, L = beam_frame(xyz, xp)
+    E, G, A, Iy, Iz, J = (xp.asarray(v) for v in (E, G, A, Iy, Iz, J))
     Ks = kappa * G * A
-    K = jnp.zeros((12, 12), dtype=R.dtype)
-    ax = E * A / L * jnp.array([[1.0, -1.0], [-1.0, 1.0]])
-    tor = G * J / L * jnp.array([[1.0, -1.0], [-1.0, 1.0]])
-    iu, it = jnp.array([0, 6]), jnp.array([3, 9])
-    K = K.at[jnp.ix_(iu, iu)].set(ax)
-    K = K.at[jnp.ix_(it, it)].set(tor)
-    iv = jnp.array([1, 5, 7, 11])  # v, θz: w' = θz  -> sign +
-    K = K.at[jnp.ix_(iv, iv)].set(_bending(E * Iz, 12 * E * Iz / (Ks * L**2), L, 1.0))
-    iw = jnp.array([2, 4, 8, 10])  # w, θy: w' = -θy -> sign -
-    K = K.at[jnp.ix_(iw, iw)].set(_bending(E * Iy, 12 * E * Iy / (Ks * L**2), L, -1.0))
-    T = jnp.kron(jnp.eye(4, dtype=R.dtype), R)
+    pair = np.array([[1.0, -1.0], [-1.0, 1.0]])
+    K = place((E * A / L)[..., None, None] * pair, (0, 6), 12, xp)
+    K = K + place((G * J / L)[..., None, None] * pair, (3, 9), 12, xp)
+    # v, θz: w' = θz -> sign +;  w, θy: w' = -θy -> sign -
+    K = K + place(_bending(E * Iz, 12 * E * Iz / (Ks * L**2), L, 1.0, xp), (1, 5, 7, 11), 12, xp)
+    K = K + place(_bending(E * Iy, 12 * E * Iy / (Ks * L**2), L, -1.0, xp), (2, 4, 8, 10), 12, xp)
+    K = congruence(K, xp.broadcast_to(R[..., None, :, :], R.shape[:-2] + (4, 3, 3)), xp)
     if offset is not None:
-        T = T @ _offset_matrix(offset)
-    return T.T @ K @ T
+        T = _offset_matrix(offset, xp)
+        K = xp.swapaxes(T, -1, -2) @ K @ T
+    return K
 
 
 def beam_load(
-    xyz: Float[Array, "2 3"], q: Float[Array, "3"], offset: Float[Array, "3"] | None = None
-) -> Float[Array, "12"]:
+    xyz: Float[Array, "... 2 3"],
+    q: Float[Array, "... 3"],
+    offset: Float[Array, "... 3"] | None = None,
+    xp=jnp,
+) -> Float[Array, "... 12"]:
     """Equivalent nodal loads (N, N·m) of a uniform line load ``q`` (N/m, global) on the axis.
 
     Forces ``q L / 2`` at each node and the fixed-end moments ``± (L² / 12) e1 × q`` (exact for
     the Timoshenko beam), carried to the nodes through the offset.
     """
-    R, L = beam_frame(xyz)
-    q = jnp.asarray(q, dtype=R.dtype)
-    m = L**2 / 12.0 * jnp.cross(R[0], q)
-    f = jnp.concatenate([0.5 * L * q, m, 0.5 * L * q, -m])
+    R, L = beam_frame(xyz, xp)
+    q = xp.asarray(q)
+    L = L[..., None]
+    m = L**2 / 12.0 * xp.cross(R[..., 0, :], q, axis=-1)
+    f = xp.concatenate([0.5 * L * q, m, 0.5 * L * q, -m], axis=-1)
     if offset is not None:
-        f = _offset_matrix(offset).T @ f
+        f = (f[..., None, :] @ _offset_matrix(offset, xp))[..., 0, :]
     return f

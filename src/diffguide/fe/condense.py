@@ -38,7 +38,8 @@ from .._precision import require_x64
 from .._types import Array, Float, ScalarLike
 from . import banded
 from . import cache as table_cache
-from .assemble import PlateSection, _element_arrays, as_arrays
+from ._xp import congruence, skew
+from .assemble import PlateSection, as_arrays, element_arrays_xp
 from .mesh import TableMesh
 from .shell import shell_frame, shell_natural_coords, shell_shape
 
@@ -151,29 +152,24 @@ def _topology(mesh: TableMesh, patches: Sequence[RigidPatch], points: Sequence):
     return owner, block, n_free, quads
 
 
-def _skew(v):
-    """(..., 3) -> (..., 3, 3) with skew(v) @ w = v × w."""
-    z = jnp.zeros_like(v[..., 0])
-    return jnp.stack(
-        [
-            jnp.stack([z, -v[..., 2], v[..., 1]], -1),
-            jnp.stack([v[..., 2], z, -v[..., 0]], -1),
-            jnp.stack([-v[..., 1], v[..., 0], z], -1),
-        ],
-        -2,
-    )
-
-
-def _rigid(d):
+def _rigid(d, xp=jnp):
     """(..., 3) offsets -> (..., 6, 6) maps [u; θ] -> [u + θ × d; θ]."""
-    eye = jnp.broadcast_to(jnp.eye(6, dtype=d.dtype), d.shape[:-1] + (6, 6))
-    return eye.at[..., :3, 3:].set(-_skew(d))
+    eye3 = xp.broadcast_to(xp.eye(3, dtype=d.dtype), d.shape[:-1] + (3, 3))
+    top = xp.concatenate([eye3, -skew(d, xp)], axis=-1)
+    bottom = xp.concatenate([xp.zeros_like(eye3), eye3], axis=-1)
+    return xp.concatenate([top, bottom], axis=-2)
 
 
-def _spd_solve(A, B):
+def _spd_solve(A, B, xp=jnp):
     """``A⁻¹ B`` for SPD ``A`` by Cholesky, differentiated as a linear solve: a tangent costs
     one more pair of triangular solves, ``dX = A⁻¹ (dB − dA X)``, not the derivative of the
-    factorisation (which costs O(n³) per tangent)."""
+    factorisation (which costs O(n³) per tangent). NumPy: the Cholesky factor ``L``, then
+    ``L⁻ᵀ (L⁻¹ B)`` (:func:`~diffguide.fe.banded._lower_inverse`: ``numpy.linalg`` has no
+    triangular solver, and its LU pivots rows of a lower-triangular matrix but not of an upper
+    one)."""
+    if xp is np:
+        L = np.linalg.cholesky(A)
+        return np.linalg.solve(L.T, banded._lower_inverse(L) @ B)
     c, lower = jax.scipy.linalg.cho_factor(jax.lax.stop_gradient(A))
     return jax.lax.custom_linear_solve(
         lambda x: A @ x,
@@ -194,6 +190,7 @@ def condense(
     gravity: ScalarLike = 9.81,
     surface_load: Float[Array, "3"] | None = None,
     method: str = "banded",
+    backend: str = "auto",
 ) -> CondensedTable:
     """Condense the table onto rigid patches and recover control points.
 
@@ -214,12 +211,27 @@ def condense(
             block Cholesky by ``lax.scan`` (:mod:`diffguide.fe.banded`); ``O(n_b s³)`` time and
             ``O(n_b s²)`` memory for ``n_b`` blocks of ``s`` DOF. ``"dense"``: the reduced
             matrix assembled dense and a dense Cholesky, ``O(n³)`` (a reference).
+        backend: ``"auto"`` (default): ``"numpy"`` when no input is traced, else ``"jax"``.
+            ``"numpy"``: the same formulas evaluated eagerly with NumPy (element matrices of
+            all elements in one batched call, the block solve in a Python loop over the
+            blocks): no tracing and no compilation, ~0.05 s for the 20 × 10 table where the
+            first compiled call costs seconds; not differentiable. ``"jax"``: the compiled,
+            differentiable program (a traced input needs it).
 
     Returns:
         :class:`CondensedTable`. Differentiable w.r.t. thickness, material, rib sizes, ``nodes``,
         ``ref_xy``.
     """
     require_x64("diffguide.fe.condense")
+    if backend not in ("auto", "numpy", "jax"):
+        raise ValueError(f"backend must be 'auto', 'numpy' or 'jax', got {backend!r}")
+    traced = any(
+        isinstance(leaf, jax.core.Tracer)
+        for leaf in jax.tree_util.tree_leaves((mesh, plate, nodes, ref_xy, gravity, surface_load))
+    )
+    if backend == "numpy" and traced:
+        raise ValueError("backend='numpy' needs concrete inputs (an input is traced)")
+    eager = backend == "numpy" or (backend == "auto" and not traced)
     owner, block, n_free, quads = _topology(mesh, patches, points)
     key = None
     if table_cache.table_cache_dir() is not None:  # a disk cache of tables (.cache)
@@ -252,6 +264,7 @@ def condense(
         gravity,
         surface_load,
         method,
+        eager,
     )
     table_cache.store(key, table)
     return table
@@ -271,9 +284,77 @@ def _condense_checked(
     gravity,
     surface_load,
     method,
+    eager=False,
 ):
+    if eager:  # concrete inputs: NumPy arrays throughout
+        mesh, plate, nodes, ref_xy, gravity = jax.tree_util.tree_map(
+            lambda x: (
+                np.asarray(x, dtype=float)
+                if isinstance(x, (int, float, jax.Array)) and not isinstance(x, bool)
+                else x
+            ),
+            (mesh, plate, nodes, ref_xy, gravity),
+        )
+        sl = np.zeros(3) if surface_load is None else np.asarray(surface_load, dtype=float)
+        return _finish_numpy(
+            _condense_layout(
+                mesh,
+                plate,
+                owner,
+                block,
+                n_free,
+                quads,
+                patches,
+                points,
+                nodes,
+                ref_xy,
+                gravity,
+                sl,
+                method,
+                np,
+            )
+        )
     mesh, plate, gravity = as_arrays((mesh, plate, gravity))
     sl = jnp.zeros(3) if surface_load is None else jnp.asarray(surface_load, dtype=float)
+    return _condense_layout(
+        mesh,
+        plate,
+        owner,
+        block,
+        n_free,
+        quads,
+        patches,
+        points,
+        nodes,
+        ref_xy,
+        gravity,
+        sl,
+        method,
+        jnp,
+    )
+
+
+def _finish_numpy(table: "CondensedTable") -> "CondensedTable":
+    """The NumPy result as JAX arrays (what the compiled path returns)."""
+    return jax.tree_util.tree_map(jnp.asarray, table)
+
+
+def _condense_layout(
+    mesh,
+    plate,
+    owner,
+    block,
+    n_free,
+    quads,
+    patches,
+    points,
+    nodes,
+    ref_xy,
+    gravity,
+    sl,
+    method,
+    xp,
+):
     pxyz = np.array([[p.x, p.y, np.nan if p.z is None else p.z] for p in patches])
     if ref_xy is not None and np.shape(ref_xy) != (len(patches), 2):
         raise ValueError(
@@ -289,7 +370,7 @@ def _condense_checked(
             layout.check(conn)
     else:
         raise ValueError(f"method must be 'banded' or 'dense', got {method!r}")
-    return _condense(
+    args = (
         mesh,
         plate,
         nodes,
@@ -305,6 +386,7 @@ def _condense_checked(
         nat,
         layout,
     )
+    return _condense_impl(np, *args) if xp is np else _condense(*args)
 
 
 def _grid_natural_coords(mesh: TableMesh, quads: np.ndarray, pts: np.ndarray):
@@ -350,6 +432,7 @@ def _condense(*args):
 
 
 def _condense_impl(
+    xp,
     mesh,
     plate,
     nodes,
@@ -365,74 +448,82 @@ def _condense_impl(
     nat,
     layout=None,
 ):
-    xyz = jnp.asarray(mesh.nodes if nodes is None else nodes, dtype=float)
-    t = jnp.asarray(plate.thickness, dtype=float)
+    xyz = xp.asarray(mesh.nodes if nodes is None else nodes, dtype=float)
+    t = xp.asarray(plate.thickness, dtype=float)
     n_patch = pxyz.shape[0]
     m = 6 * n_patch
     n_i = 6 * n_free
     n_r = n_i + m
-    ref = jnp.where(jnp.isnan(pxyz), -0.5 * t, pxyz)
+    ref = xp.where(xp.isnan(pxyz), -0.5 * t, pxyz)
     if ref_xy is not None:
-        ref = ref.at[:, :2].set(jnp.asarray(ref_xy, dtype=float))
+        ref = xp.concatenate([xp.asarray(ref_xy, dtype=float), ref[:, 2:]], axis=1)
     slave = owner >= 0
-    d = xyz - ref[jnp.where(slave, owner, 0)]
-    A = jnp.where(slave[:, None, None], _rigid(d), jnp.eye(6))  # node DOF = A @ block DOF
+    d = xyz - ref[xp.where(slave, owner, 0)]
+    A = xp.where(slave[:, None, None], _rigid(d, xp), xp.eye(6))  # node DOF = A @ block DOF
 
     parts = []
-    for ea in _element_arrays(mesh, plate, nodes, gravity, sl):
+    for ea in element_arrays_xp(mesh, plate, nodes, gravity, sl, xp):
         k = ea.conn.shape[1]
         Ae = A[ea.conn]  # (n_el, k, 6, 6)
-        Ke = ea.K.reshape(-1, k, 6, k, 6)
-        Ke = jnp.einsum("eiac,eiajb,ejbd->eicjd", Ae, Ke, Ae).reshape(-1, 6 * k, 6 * k)
-        fe = jnp.einsum("eiac,eia->eic", Ae, ea.f.reshape(-1, k, 6)).reshape(-1, 6 * k)
+        if xp is np:  # only the elements touching a patch (A = I elsewhere)
+            tied_el = np.flatnonzero(slave[ea.conn].any(axis=1))
+            Ke = ea.K.copy()
+            Ke[tied_el] = congruence(ea.K[tied_el], Ae[tied_el], np)
+        else:
+            Ke = congruence(ea.K, Ae, xp)
+        fe = xp.einsum("eiac,eia->eic", Ae, ea.f.reshape(-1, k, 6)).reshape(-1, 6 * k)
         parts.append((ea.conn, Ke, fe))
 
     if layout is None:  # dense: interior nodes in node order, then the interface DOF
-        K = jnp.zeros((n_r, n_r))
-        f = jnp.zeros(n_r)
+        idx, vals, fidx, fvals = [], [], [], []
         for conn, Ke, fe in parts:
-            dofs = (6 * block[conn][:, :, None] + jnp.arange(6)).reshape(conn.shape[0], -1)
-            K = K.at[dofs[:, :, None], dofs[:, None, :]].add(Ke)
-            f = f.at[dofs].add(fe)
+            dofs = (6 * block[conn][:, :, None] + xp.arange(6)).reshape(conn.shape[0], -1)
+            idx.append(xp.ravel(dofs[:, :, None] * n_r + dofs[:, None, :]))
+            vals.append(xp.ravel(Ke))
+            fidx.append(xp.ravel(dofs))
+            fvals.append(xp.ravel(fe))
+        K = banded.scatter_add(n_r * n_r, xp.concatenate(idx), xp.concatenate(vals), xp)
+        K = K.reshape(n_r, n_r)
+        f = banded.scatter_add(n_r, xp.concatenate(fidx), xp.concatenate(fvals), xp)
         Kii, Kib, Kbb = K[:n_i, :n_i], K[:n_i, n_i:], K[n_i:, n_i:]
-        X = _spd_solve(Kii, jnp.concatenate([Kib, f[:n_i, None]], axis=1))
+        X = _spd_solve(Kii, xp.concatenate([Kib, f[:n_i, None]], axis=1), xp)
         Kc = Kbb - Kib.T @ X[:, :m]
         fc = f[n_i:] - Kib.T @ X[:, m]
-        Xn = X.reshape(-1, 6, m + 1)[block]  # interior rows per node (slave rows: garbage)
+        Xn = X.reshape(-1, 6, m + 1)[xp.minimum(block, n_free - 1)]  # slave rows: unused
     else:  # block-tridiagonal interior (all nodes, slave DOF decoupled), see .banded
-        D, C, Kib, Kbb, fi, fb = banded.assemble_blocks(layout, parts)
-        X = banded.spd_solve(D, C, jnp.concatenate([Kib, fi[:, :, None]], axis=2))
-        Kc = Kbb - jnp.einsum("nim,nik->mk", Kib, X[:, :, :m])
-        fc = fb - jnp.einsum("nim,ni->m", Kib, X[:, :, m])
+        D, C, Kib, Kbb, fi, fb = banded.assemble_blocks(layout, parts, xp)
+        X = banded.spd_solve(D, C, xp.concatenate([Kib, fi[:, :, None]], axis=2), xp)
+        Kc = Kbb - xp.einsum("nim,nik->mk", Kib, X[:, :, :m])
+        fc = fb - xp.einsum("nim,ni->m", Kib, X[:, :, m])
         Xn = X.reshape(-1, 6, m + 1)[layout.node_index()]
     Kc = 0.5 * (Kc + Kc.T)
 
     # node DOF per interface DOF: interior nodes -X, slave nodes the rigid map of their patch
-    onehot = jnp.asarray(owner[:, None] == np.arange(n_patch), dtype=A.dtype)  # (n, p)
-    tied = jnp.einsum("np,nab->napb", onehot, A).reshape(-1, 6, m)
-    node_modes = jnp.where(slave[:, None, None], tied, -Xn[:, :, :m])
-    node_u0 = jnp.where(slave[:, None], 0.0, Xn[:, :, m])
+    onehot = xp.asarray(owner[:, None] == np.arange(n_patch), dtype=A.dtype)  # (n, p)
+    tied = xp.einsum("np,nab->napb", onehot, A).reshape(-1, 6, m)
+    node_modes = xp.where(slave[:, None, None], tied, -Xn[:, :, :m])
+    node_u0 = xp.where(slave[:, None], 0.0, Xn[:, :, m])
 
     # control points: bilinear interpolation in the containing quad + offset to the top surface
-    qn = jnp.asarray(mesh.quads)[quads]  # (n_pts, 4)
-    exyz = xyz[qn]
-
-    def point_map(ex, p, s):
-        s = shell_natural_coords(ex, p) if s is None else s
-        N = shell_shape(s[0], s[1])
-        R, _ = shell_frame(ex)
-        return N[:, None, None] * _rigid(0.5 * t * R[2])  # (4, 6, 6)
-
+    qn = xp.asarray(mesh.quads)[quads]  # (n_pts, 4)
     if pts.shape[0] > 0:
-        W = jax.vmap(point_map)(exyz, jnp.asarray(pts), nat)  # (n_pts, 4, 6, 6)
-        Rm = jnp.einsum("pkab,pkbm->pam", W, node_modes[qn]).reshape(-1, m)
-        r0 = jnp.einsum("pkab,pkb->pa", W, node_u0[qn]).reshape(-1)
+        exyz = xyz[qn]  # (n_pts, 4, 3)
+        s = shell_natural_coords(exyz, xp.asarray(pts), xp) if nat is None else xp.asarray(nat)
+        N = shell_shape(s[:, 0], s[:, 1], xp)  # (n_pts, 4)
+        R, _ = shell_frame(exyz, xp)
+        W = N[:, :, None, None] * _rigid(0.5 * t * R[:, 2], xp)[:, None]  # (n_pts, 4, 6, 6)
+        Rm = xp.einsum("pkab,pkbm->pam", W, node_modes[qn]).reshape(-1, m)
+        r0 = xp.einsum("pkab,pkb->pa", W, node_u0[qn]).reshape(-1)
     else:
-        Rm, r0 = jnp.zeros((0, m)), jnp.zeros(0)
+        Rm, r0 = xp.zeros((0, m)), xp.zeros(0)
     return CondensedTable(
         K=Kc, f=fc, R=Rm, r0=r0, node_modes=node_modes, node_u0=node_u0, ref_points=ref, nodes=xyz
     )
 
 
-_condense_top = eqx.filter_jit(_condense_impl, compiler_options=CONDENSE_COMPILER_OPTIONS)
-_condense_nested = eqx.filter_jit(_condense_impl)
+def _condense_jax(*args):
+    return _condense_impl(jnp, *args)
+
+
+_condense_top = eqx.filter_jit(_condense_jax, compiler_options=CONDENSE_COMPILER_OPTIONS)
+_condense_nested = eqx.filter_jit(_condense_jax)
