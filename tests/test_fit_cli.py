@@ -20,7 +20,7 @@ def out_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("fit") / "result"
     rc = main(["fit", "--preset", "majda2012", "--measurements", str(DATA), "--out", str(out),
                "--truth", str(TRUTH), "--export-compensation", str(out.parent / "comp.txt"),
-               "--at", "P1", "--quiet"])
+               "--at", "P1", "--rigid", "--quiet"])
     assert rc == 0
     return out
 
@@ -137,13 +137,17 @@ def _subset(tmp_path, keep) -> Path:
 def test_interferometer_only_writes_an_honest_report(tmp_path):
     """One interferometer at the centre, pitch and yaw only (the commonest real data set) with a
     given λ: a report is written, λ is the given one, no NaN (the JSON has none by
-    construction: allow_nan=False), the rails' mean is determined and their difference is not."""
+    construction: allow_nan=False), the rails' mean is determined and their difference is not.
+    No rigid-table inversion unless asked for (--rigid / [fit] rigid)."""
     data = _subset(tmp_path, {"P5"})
     out = tmp_path / "o"
     rc = main(["fit", "--measurements", str(data), "--out", str(out), "--lambda", "0.01",
-               "--structure", "fixed", "--no-rigid", "--no-plots", "--quiet"])
+               "--structure", "fixed", "--no-plots", "--quiet"])
     assert rc in (0, 3)
+    assert not (out / "rails_rigid.csv").exists()
     rep = json.loads((out / "report.json").read_text())
+    assert "rigid_table" not in rep
+    assert "fitted_rigid" not in (out / "fit.csv").read_text()
     assert rep["elastic"]["lambda"] == 0.01
     assert rep["elastic"]["chi2_per_dof"] is not None and rep["elastic"]["chi2_per_dof"] > 0
     combos = {c["combination"].split(" (")[0]: c for c in rep["identifiability"]["wavelengths"]}

@@ -27,11 +27,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "the table's equivalent thickness and the preload, which nobody knows - to measured "
         "joint kinematic errors (levels, interferometers) through the elastic machine model, by "
         "regularised Levenberg-Marquardt (marginal-likelihood weight), with posterior ±σ bands "
-        "that include the structure's uncertainty, an identifiability report and the classical "
-        "rigid-table inversion side by side. Input CSV: position_mm,point,x_mm,y_mm,quantity,"
+        "that include the structure's uncertainty and an identifiability report (with --rigid, "
+        "the classical rigid-table inversion side by side). Input CSV: position_mm,point,x_mm,"
+        "y_mm,quantity,"
         "value,unit[,sigma][,run][,direction][,instrument][,z_mm] (positions and points in mm; "
         "values in µm, mm, µm/m, µrad, mrad or arcsec). Output folder (written atomically): "
-        "rails.csv and rails_rigid.csv "
+        "rails.csv (and rails_rigid.csv with --rigid) "
         "(rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um), fit.csv "
         "(every input row with fitted and residual, in its unit), report.json, profiles.png, "
         "curves.png. Exit codes: 0 converged; 3 results written but the fit did not converge "
@@ -77,8 +78,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "times it")
     p.add_argument("--nx", type=int, default=None, help=argparse.SUPPRESS)  # deprecated: --mesh
     p.add_argument("--ny", type=int, default=None, help=argparse.SUPPRESS)
-    p.add_argument("--no-rigid", action="store_true",
-                   help="skip the rigid-table inversion")
+    p.add_argument("--rigid", dest="rigid", action="store_const", const=True, default=None,
+                   help="also run the classical rigid-table inversion (rails_rigid.csv, its "
+                   "columns in fit.csv and report.json, a dashed curve in the plots); it costs "
+                   "a second compilation, 3-6 s; default: the config's [fit] rigid, else off")
+    p.add_argument("--no-rigid", dest="rigid", action="store_const", const=False,
+                   help="no rigid-table inversion (the default; overrides [fit] rigid = true)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
     p.add_argument("--truth", metavar="FILE.csv", default=None,
                    help="known profiles (rail,s_mm,vertical_um,horizontal_um) to score the "
@@ -260,6 +265,14 @@ def fit_settings(args, cfg) -> tuple[str, str]:
     return structure, criterion
 
 
+def rigid_wanted(args, cfg) -> bool:
+    """Whether to run the rigid-table inversion too: ``--rigid`` / ``--no-rigid``, else the
+    configuration's ``[fit] rigid``, else no (it costs a compilation of its own)."""
+    if args.rigid is not None:
+        return bool(args.rigid)
+    return bool(cfg.get("fit", {}).get("rigid", False))
+
+
 def structure_priors(args, cfg):
     """The structural priors: the flags, else the configuration's ``[fit]`` section, else the
     machine's own values with the ranges [1/2, 2]× (thickness) and [1/4, 2]× (preload)."""
@@ -352,7 +365,8 @@ def run(args) -> int:
     machine = family.base
     spacing = None if args.knot_spacing_mm is None else args.knot_spacing_mm * 1e-3
     fits, seconds = {}, {}
-    models = [("", family)] + ([] if args.no_rigid else [("_rigid", machine.with_rigid_table())])
+    rigid = [("_rigid", machine.with_rigid_table())] if rigid_wanted(args, cfg) else []
+    models = [("", family)] + rigid
     for label, m in models:
         t = time.perf_counter()
         say(args, f"{'rigid-table' if label else 'elastic'} fit: compiling and solving ...")
