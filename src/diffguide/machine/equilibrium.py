@@ -119,10 +119,12 @@ class Machine(eqx.Module):
     ) -> Float[Array, "k n 2"]:
         """Rail deviation ``(e_y, e_z)`` (m) under every element of every carriage at ``x`` (m)."""
         xi = jnp.asarray(self.carriage.xi, dtype=float)
-        out = []
-        for k, r in enumerate(self.carriage_rail):
-            ey, ez = rails[r](x + self.carriage_x[k] + xi)
-            out.append(jnp.stack([ey, ez], axis=-1))
+        out = [None] * len(self.carriage_rail)
+        for r in sorted(set(self.carriage_rail)):  # one evaluation per rail (a smaller program)
+            ks = [k for k, rk in enumerate(self.carriage_rail) if rk == r]
+            ey, ez = rails[r](x + self.carriage_x[np.asarray(ks)][:, None] + xi)
+            for j, k in enumerate(ks):
+                out[k] = jnp.stack([ey[j], ez[j]], axis=-1)
         return jnp.stack(out)
 
 
