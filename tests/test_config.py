@@ -71,6 +71,7 @@ BAD = [
     ("[fit]\npreload_prior = [0.08, 0.02]", "key 'fit.preload_prior': must be a list of three"),
     ('[fit]\nstructure = "guess"', "key 'fit.structure': 'guess' is not allowed"),
     ("[fit]\nlambda = 3", "key 'fit.lambda' is unknown"),
+    ("[fit]\nrigid = 1", "key 'fit.rigid': must be true or false"),
 ]
 
 
@@ -141,3 +142,24 @@ def test_fit_section_sets_the_structural_priors(tmp_path):
     assert structure_priors(argparse.Namespace(
         structure=None, criterion=None, thickness_prior_mm=None, preload_prior=None),
         load_config(path)).active() == ()
+
+
+def test_fit_section_rigid_switch(tmp_path):
+    """``[fit] rigid = true`` asks for the rigid-table inversion; ``--rigid``/``--no-rigid``
+    override it; the dumped file reads back the same (TOML booleans)."""
+    import argparse
+
+    from diffguide.cli.fit import rigid_wanted
+
+    path = tmp_path / "m.toml"
+    path.write_text("[fit]\nrigid = true\n")
+    cfg = load_config(path)
+    assert cfg["fit"]["rigid"] is True
+    assert rigid_wanted(argparse.Namespace(rigid=None), cfg)
+    assert not rigid_wanted(argparse.Namespace(rigid=False), cfg)
+    assert not rigid_wanted(argparse.Namespace(rigid=None), load_config(tmp_path / "m.toml")
+                            | {"fit": {"rigid": False}})
+    again = tmp_path / "again.toml"
+    again.write_text(dump_config(cfg))
+    assert "rigid = true" in again.read_text()
+    assert load_config(again)["fit"]["rigid"] is True

@@ -23,7 +23,7 @@ from .. import presets
 #: ``{section: {key: (spec path, SI -> user scale, kind, low, high, help)}}``: every key of a
 #: machine file, the field of :class:`~diffguide.machine.spec.MachineSpec` it sets (``None``:
 #: a key of the file only) and the factor from SI to the key's unit (``None``: not a number).
-#: kind: "float", "int", "str:a|b", "pair" (two floats). Ranges are inclusive.
+#: kind: "float", "int", "bool", "str:a|b", "pair" (two floats). Ranges are inclusive.
 KEYS: dict[str, dict[str, tuple]] = {
     "table": {
         "length_mm": ("table.length", 1e3, "float", 50.0, 20000.0, "table length along X"),
@@ -248,6 +248,13 @@ FIT_SCHEMA: dict[str, tuple] = {
         None,
         "regularisation weight: marginal likelihood (ml) or generalised cross-validation (gcv)",
     ),
+    "rigid": (
+        False,
+        "bool",
+        None,
+        None,
+        "also run the classical rigid-table inversion (rails_rigid.csv; a compilation of its own)",
+    ),
 }
 
 
@@ -383,6 +390,10 @@ def _check(value, spec, where):
         allowed = kind[4:].split("|")
         if value not in allowed:
             raise ValueError(f"{where}: {value!r} is not allowed; allowed: {', '.join(allowed)}")
+        return value
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ValueError(f"{where}: must be true or false, got {value!r}")
         return value
     if kind == "int":
         if isinstance(value, bool) or not isinstance(value, int):
@@ -550,6 +561,8 @@ def load_config(path: str | os.PathLike) -> dict:
 
 
 def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
     if isinstance(v, str):
         return f'"{v}"'
     if isinstance(v, (tuple, list)):
