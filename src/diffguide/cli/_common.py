@@ -38,6 +38,8 @@ MESH_COMMANDS = ("table", "simulate", "fit", "montecarlo")
 DEFAULT_CACHE_DIR = Path("~/.cache/diffguide/jax")
 #: condensed tables (:mod:`diffguide.fe.cache`) live in this sub-folder of the cache folder
 TABLE_SUBDIR = "tables"
+#: exported (traced) programs (:mod:`diffguide._core.aot`) live in this sub-folder
+EXPORT_SUBDIR = "exports"
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -198,8 +200,10 @@ def prepare_runtime(args) -> None:
       recompiles everything. The consequence: a check that fails inside compiled code gives NaN
       instead of an exception, and the solvers report NaN as non-convergence (exit 3).
     - the persistent compilation cache (:func:`cache_dir`; every compilation is stored), when
-      this process starts JAX itself or the user named a folder explicitly, and the cache of
-      condensed tables in its sub-folder :data:`TABLE_SUBDIR` (:mod:`diffguide.fe.cache`).
+      this process starts JAX itself or the user named a folder explicitly, the cache of
+      condensed tables in its sub-folder :data:`TABLE_SUBDIR` (:mod:`diffguide.fe.cache`) and
+      the exported programs in :data:`EXPORT_SUBDIR` (:mod:`diffguide._core.aot`: a second run
+      skips tracing the fit's linearisation and the sweep).
     - float64 (micrometres on metre-scale geometry need it).
     """
     from .._core.stack import check_stack
@@ -225,13 +229,17 @@ def prepare_runtime(args) -> None:
             # of small functions whose compilations add up to seconds
             jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
             jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+            from .._core.aot import set_export_dir
             from ..fe.cache import set_table_cache_dir
 
             set_table_cache_dir(folder / TABLE_SUBDIR)
+            set_export_dir(folder / EXPORT_SUBDIR)
     if folder is None:  # --no-cache (an earlier in-process run may have set a folder)
+        from .._core.aot import set_export_dir
         from ..fe.cache import set_table_cache_dir
 
         set_table_cache_dir(None)
+        set_export_dir(None)
     from .._core.precision import enable_x64
 
     enable_x64()

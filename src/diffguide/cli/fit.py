@@ -340,6 +340,7 @@ def run(args) -> int:
     from ..studies.iso230_2 import channel_figures
     from ._common import machine_config
 
+    _store_linearisation()
     t_start = time.perf_counter()
     _check_out(Path(args.out))
     cfg = machine_config(args)
@@ -452,6 +453,17 @@ def run(args) -> int:
               file=sys.stderr)
     sys.stdout.flush()
     return 0 if elastic.converged else EXIT_NOT_CONVERGED
+
+
+def _store_linearisation() -> None:
+    """The fit's linearisation as an exported program in the cache folder
+    (:mod:`diffguide._core.aot`: a second run does not trace it), unless
+    :mod:`diffguide.inverse.fit` wraps it itself."""
+    from .._core.aot import cached_program
+    from ..inverse import fit as fit_module
+
+    if not isinstance(fit_module._linearise, cached_program):
+        fit_module._linearise = cached_program(fit_module._linearise, "inverse.fit._linearise")
 
 
 def _jsonable(obj):

@@ -125,6 +125,7 @@ def parse_mesh(text: str) -> tuple[int, int]:
 def run(args) -> int:
     import sys
 
+    from .._core.aot import cached_program
     from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
     from ..io.config import spec_from_config
     from ..io.rails_csv import read_rails_csv
@@ -151,7 +152,10 @@ def run(args) -> int:
     if args.rigid_table:
         machine = machine.with_rigid_table()
     say(f"solving the equilibrium at {len(positions)} positions ...")
-    je = joint_errors(machine, rails, positions)
+    # stored as an exported program in the cache folder: a second run does not trace it
+    je = cached_program(joint_errors, "machine.kinematics.joint_errors")(
+        machine, rails, np.asarray(positions, dtype=float)
+    )
     ok = np.asarray(je.converged)
     if not ok.all():
         bad = ", ".join(f"{x * 1e3:g} mm" for x in positions[~ok])

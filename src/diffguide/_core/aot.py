@@ -1,0 +1,247 @@
+"""Traced programs stored on disk (``jax.export``): a second process skips the tracing.
+
+JAX's persistent compilation cache skips XLA's compilation on a second run, but not JAX's own
+tracing and lowering, which for the fit's linearisation (a ``jacfwd`` through the implicit
+equilibrium, vmapped over the positions) costs seconds. :class:`cached_program` wraps a function
+of pytrees (equinox modules, arrays, static fields) so that, with a folder set
+(:func:`set_export_dir`; the command line sets ``<cache dir>/exports``):
+
+- **key**: SHA-256 of the function's name, the structure of its arguments (the pytree
+  definition with every static field and non-array leaf, by ``repr``), every array argument's
+  shape, dtype and weak type, and everything else that changes the program: the source of every
+  module of the ``diffguide`` package, the diffguide, JAX and jaxlib versions, the backend, the
+  float width, equinox's ``EQX_ON_ERROR`` and :data:`FORMAT`. Arguments whose ``repr`` holds a
+  memory address (``" at 0x"``) are not cached (the key would differ in every process).
+- **files**: ``<key>.jaxexport`` — the serialised :class:`jax.export.Exported` (StableHLO) of
+  the function of the flattened array arguments — and ``<key>.out`` — the output's structure
+  (a pickle of the output with every array replaced by a marker). Both are written to a
+  temporary file and renamed into place. A process that finds them deserialises the program
+  and calls it: XLA compiles it (or loads it from the persistent compilation cache); nothing is
+  traced. The first process exports (traces once) and calls the exported program too, so that
+  the function is traced only once there as well.
+- **robust**: a missing, unreadable or foreign file, a program that cannot be exported (e.g.
+  one holding host callbacks: equinox's checks with ``EQX_ON_ERROR=raise``) or deserialised,
+  and any call from inside another trace fall back to calling the function itself; every
+  fallback is counted in :data:`stats`.
+
+Without a folder (the library's default), or without the ``flatbuffers`` package (which
+``jax.export`` needs to serialise), the wrapper calls the function unchanged. The
+results of the stored program are those of the function (same StableHLO; compared in
+``tests/test_aot.py``). As with JAX's compilation cache, the folder holds code that is run: it
+must be the user's own.
+"""
+
+import functools
+import hashlib
+import importlib.util
+import os
+import pickle
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import equinox as eqx
+import jax
+
+#: Bumped when the file layout changes.
+FORMAT = 1
+_dir: Path | None = None
+_code_hash: str | None = None
+#: Counters in this process: ``hits`` (read from disk), ``exports`` (traced and written),
+#: ``fallbacks`` (the function called directly although a folder is set), ``calls``.
+stats = {"hits": 0, "exports": 0, "fallbacks": 0, "calls": 0}
+
+
+def set_export_dir(path: str | os.PathLike | None) -> None:
+    """Use ``path`` (created when needed) for exported programs; ``None`` switches it off (and
+    so does a missing ``flatbuffers`` package: ``jax.export`` cannot serialise without it)."""
+    global _dir
+    if path is not None and importlib.util.find_spec("flatbuffers") is None:
+        path = None
+    _dir = None if path is None else Path(path).expanduser()
+
+
+def export_dir() -> Path | None:
+    """The folder in use, or ``None``."""
+    return _dir
+
+
+def _code_version() -> str:
+    """Hash of the package source and the versions that change a traced program."""
+    global _code_hash
+    if _code_hash is None:
+        from .. import __version__
+
+        h = hashlib.sha256(f"{FORMAT}|{__version__}|{jax.__version__}|".encode())
+        try:
+            import jaxlib
+
+            h.update(jaxlib.__version__.encode())
+        except (ImportError, AttributeError):  # pragma: no cover
+            pass
+        root = Path(__file__).resolve().parents[1]
+        for path in sorted(root.rglob("*.py")):
+            h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+        _code_hash = h.hexdigest()
+    return _code_hash
+
+
+def _environment() -> str:
+    try:
+        from equinox._config import EQX_ON_ERROR
+    except ImportError:  # pragma: no cover
+        EQX_ON_ERROR = os.environ.get("EQX_ON_ERROR", "")
+    return "|".join(
+        (
+            _code_version(),
+            jax.default_backend(),
+            str(jax.config.read("jax_enable_x64")),
+            str(EQX_ON_ERROR),
+        )
+    )
+
+
+def program_key(name: str, args: tuple) -> str | None:
+    """SHA-256 (hex) of a call ``name(*args)`` (see the module docstring); ``None`` when it
+    cannot be cached (a traced argument, or a static part whose ``repr`` holds an address)."""
+    dyn, static = eqx.partition(args, eqx.is_array)
+    leaves, treedef = jax.tree_util.tree_flatten(dyn)
+    if any(isinstance(leaf, jax.core.Tracer) for leaf in leaves):
+        return None
+    s_leaves, s_treedef = jax.tree_util.tree_flatten(static)
+    text = f"{name}|{_environment()}|{treedef}|{s_treedef}|{s_leaves!r}"
+    if " at 0x" in text:
+        return None
+    h = hashlib.sha256(text.encode())
+    for leaf in leaves:
+        weak = bool(getattr(leaf, "weak_type", False))
+        h.update(f"{leaf.dtype.str}{tuple(leaf.shape)}{weak};".encode())
+    return h.hexdigest()
+
+
+def _cpu_kernels_ready() -> bool:
+    """Load jaxlib's CPU LAPACK kernels (their BLAS/LAPACK function pointers). JAX does it while
+    lowering a LAPACK operation; a deserialised program is not lowered, and running its LAPACK
+    custom calls without it crashed the process (segmentation fault, jax 0.9.2). ``False`` when
+    it cannot be done (then nothing is read from disk)."""
+    if jax.default_backend() != "cpu":
+        return True
+    try:
+        from jax._src.lib import lapack
+
+        lapack._lapack.initialize()
+    except Exception:  # pragma: no cover - another jaxlib layout: do not risk it
+        return False
+    return True
+
+
+class _Array:
+    """Marks where an output array goes in the stored output structure."""
+
+
+def _write(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:16]}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+class cached_program:
+    """``fn`` (a function of pytrees returning a pytree of arrays and static data), stored and
+    reloaded as an exported program when a folder is set (module docstring).
+
+    Arguments:
+        fn: the function (typically already ``eqx.filter_jit``-ed: it is what runs without a
+            folder and inside other traces).
+        name: a stable name for the keys (e.g. ``"inverse.fit._linearise"``).
+    """
+
+    def __init__(self, fn: Callable, name: str):
+        functools.update_wrapper(self, fn, updated=())
+        self.fn = fn
+        self.name = name
+        self._programs: dict[str, tuple[Callable, object] | None] = {}
+
+    def __call__(self, *args):
+        if _dir is None:
+            return self.fn(*args)
+        stats["calls"] += 1
+        key = program_key(self.name, args)
+        if key is None:
+            stats["fallbacks"] += 1
+            return self.fn(*args)
+        dyn, _ = eqx.partition(args, eqx.is_array)
+        leaves = jax.tree_util.tree_leaves(dyn)
+        if key in self._programs:
+            prog = self._programs[key]
+        else:
+            prog = self._load(key) or self._export(key, args)
+            self._programs[key] = prog  # None: cannot be exported, do not try again
+        if prog is None:
+            stats["fallbacks"] += 1
+            return self.fn(*args)
+        call, template = prog
+        out = iter(call(*leaves))
+        t_leaves, t_def = jax.tree_util.tree_flatten(template)
+        return jax.tree_util.tree_unflatten(
+            t_def, [next(out) if isinstance(v, _Array) else v for v in t_leaves]
+        )
+
+    def _paths(self, key: str) -> tuple[Path, Path]:
+        return _dir / f"{key}.jaxexport", _dir / f"{key}.out"
+
+    def _load(self, key: str):
+        prog_path, out_path = self._paths(key)
+        if not _cpu_kernels_ready():
+            return None
+        try:
+            exported = jax.export.deserialize(bytearray(prog_path.read_bytes()))
+            template = pickle.loads(out_path.read_bytes())
+        except Exception:  # missing, partial, foreign, old: export again
+            return None
+        stats["hits"] += 1
+        return jax.jit(exported.call), template
+
+    def _export(self, key: str, args: tuple):
+        dyn, static = eqx.partition(args, eqx.is_array)
+        leaves, treedef = jax.tree_util.tree_flatten(dyn)
+        box = {}
+
+        def flat(*xs):
+            out = self.fn(*eqx.combine(jax.tree_util.tree_unflatten(treedef, xs), static))
+            box["template"] = jax.tree_util.tree_map(
+                lambda v: _Array() if eqx.is_array(v) else v, out
+            )
+            return [v for v in jax.tree_util.tree_leaves(out) if eqx.is_array(v)]
+
+        specs = [
+            jax.ShapeDtypeStruct(v.shape, v.dtype, weak_type=bool(getattr(v, "weak_type", False)))
+            for v in leaves
+        ]
+        try:
+            exported = jax.export.export(jax.jit(flat))(*specs)
+            blob = exported.serialize()
+            template = pickle.dumps(box["template"])
+        except Exception:  # e.g. host callbacks (EQX_ON_ERROR=raise) or an unpicklable output
+            return None
+        prog_path, out_path = self._paths(key)
+        try:
+            _write(out_path, template)
+            _write(prog_path, bytes(blob))
+        except OSError:
+            pass  # a folder that cannot be written to: run it anyway
+        stats["exports"] += 1
+        return jax.jit(exported.call), box["template"]
+
+
+def cached(name: str) -> Callable[[Callable], cached_program]:
+    """Decorator form of :class:`cached_program`: ``@cached("inverse.fit._linearise")``."""
+    return lambda fn: cached_program(fn, name)
