@@ -115,5 +115,6 @@ def plot_curves(channels, *, title: str = "", ax=None):
             low.tick_params(labelbottom=True)
     axes[0, 0].legend(fontsize=7)
     fig.suptitle(title or "measured vs fitted joint errors")
-    fig.tight_layout()
+    if ax is None:  # given Axes: the caller owns the layout (tight_layout costs ~1 s here)
+        fig.tight_layout()
     return axes
