@@ -71,6 +71,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.aot import cached_program
 from .._core.precision import require_x64
 from ..guideway.rails import SplineRail, bspline_matrix
 from ..machine.equilibrium import Machine
@@ -154,8 +155,7 @@ def _data_residual_full(x, prob: _Problem):
     return prob.weight * (d - off[prob.chan]) / prob.sigma, pred, ok
 
 
-@eqx.filter_jit
-def _linearise(v, prob: _Problem):
+def _linearise_traced(v, prob: _Problem):
     """Residual, Jacobian w.r.t. ``v = (c, q, ℓ)``, model values, convergence."""
 
     def f(t):
@@ -164,6 +164,12 @@ def _linearise(v, prob: _Problem):
 
     J, (r, pred, ok) = jax.jacfwd(f, has_aux=True)(v)
     return r, J, pred, ok
+
+
+#: The compiled linearisation; with an export folder set (the command line sets one,
+#: :mod:`diffguide._core.aot`) a later process reads the traced program back instead of
+#: tracing it again (seconds); without one, the ``filter_jit`` function itself.
+_linearise = cached_program(eqx.filter_jit(_linearise_traced), "inverse.fit._linearise")
 
 
 def _levenberg_marquardt(x, r, J, pred, Jc, linearise, P, rtol, max_steps):
