@@ -101,14 +101,20 @@ def _environment() -> str:
     )
 
 
-def program_key(name: str, args: tuple) -> str | None:
-    """SHA-256 (hex) of a call ``name(*args)`` (see the module docstring); ``None`` when it
-    cannot be cached (a traced argument, or a static part whose ``repr`` holds an address)."""
+def _parts(args: tuple):
+    """``(array leaves, their treedef, static leaves, static treedef)`` of ``args``."""
     dyn, static = eqx.partition(args, eqx.is_array)
     leaves, treedef = jax.tree_util.tree_flatten(dyn)
+    s_leaves, s_treedef = jax.tree_util.tree_flatten(static)
+    return leaves, treedef, s_leaves, s_treedef
+
+
+def program_key(name: str, args: tuple, parts=None) -> str | None:
+    """SHA-256 (hex) of a call ``name(*args)`` (see the module docstring); ``None`` when it
+    cannot be cached (a traced argument, or a static part whose ``repr`` holds an address)."""
+    leaves, treedef, s_leaves, s_treedef = _parts(args) if parts is None else parts
     if any(isinstance(leaf, jax.core.Tracer) for leaf in leaves):
         return None
-    s_leaves, s_treedef = jax.tree_util.tree_flatten(static)
     text = f"{name}|{_environment()}|{treedef}|{s_treedef}|{s_leaves!r}"
     if " at 0x" in text:
         return None
@@ -169,17 +175,33 @@ class cached_program:
         self.fn = fn
         self.name = name
         self._programs: dict[str, tuple[Callable, object] | None] = {}
+        self._keys: dict = {}  # in-process: hashable call signature -> key
 
     def __call__(self, *args):
         if _dir is None:
             return self.fn(*args)
         stats["calls"] += 1
-        key = program_key(self.name, args)
+        parts = _parts(args)
+        leaves = parts[0]
+        if any(isinstance(leaf, jax.core.Tracer) for leaf in leaves):
+            stats["fallbacks"] += 1
+            return self.fn(*args)
+        try:  # the string key (repr of every static field) costs ms: once per signature
+            sig = (
+                _dir,
+                parts[1],
+                parts[3],
+                tuple(parts[2]),
+                tuple((v.shape, v.dtype, bool(getattr(v, "weak_type", False))) for v in leaves),
+            )
+            key = self._keys.get(sig) or self._keys.setdefault(
+                sig, program_key(self.name, args, parts)
+            )
+        except TypeError:  # an unhashable static leaf
+            key = program_key(self.name, args, parts)
         if key is None:
             stats["fallbacks"] += 1
             return self.fn(*args)
-        dyn, _ = eqx.partition(args, eqx.is_array)
-        leaves = jax.tree_util.tree_leaves(dyn)
         if key in self._programs:
             prog = self._programs[key]
         else:
