@@ -168,12 +168,16 @@ class cached_program:
         fn: the function (typically already ``eqx.filter_jit``-ed: it is what runs without a
             folder and inside other traces).
         name: a stable name for the keys (e.g. ``"inverse.fit._linearise"``).
+        compiler_options: XLA options for compiling the stored program (e.g.
+            ``{"xla_backend_optimization_level": 0}`` for a program that runs once per process,
+            where compiling at the default level costs more than it saves); ``None``: defaults.
     """
 
-    def __init__(self, fn: Callable, name: str):
+    def __init__(self, fn: Callable, name: str, compiler_options: dict | None = None):
         functools.update_wrapper(self, fn, updated=())
         self.fn = fn
         self.name = name
+        self.compiler_options = dict(compiler_options or {})
         self._programs: dict[str, tuple[Callable, object] | None] = {}
         self._keys: dict = {}  # in-process: hashable call signature -> key
 
@@ -217,6 +221,11 @@ class cached_program:
             t_def, [next(out) if isinstance(v, _Array) else v for v in t_leaves]
         )
 
+    def _jit(self, exported):
+        if self.compiler_options:
+            return jax.jit(exported.call, compiler_options=self.compiler_options)
+        return jax.jit(exported.call)
+
     def _paths(self, key: str) -> tuple[Path, Path]:
         return _dir / f"{key}.jaxexport", _dir / f"{key}.out"
 
@@ -230,7 +239,7 @@ class cached_program:
         except Exception:  # missing, partial, foreign, old: export again
             return None
         stats["hits"] += 1
-        return jax.jit(exported.call), template
+        return self._jit(exported), template
 
     def _export(self, key: str, args: tuple):
         dyn, static = eqx.partition(args, eqx.is_array)
@@ -261,9 +270,9 @@ class cached_program:
         except OSError:
             pass  # a folder that cannot be written to: run it anyway
         stats["exports"] += 1
-        return jax.jit(exported.call), box["template"]
+        return self._jit(exported), box["template"]
 
 
-def cached(name: str) -> Callable[[Callable], cached_program]:
+def cached(name: str, compiler_options: dict | None = None) -> Callable[[Callable], cached_program]:
     """Decorator form of :class:`cached_program`: ``@cached("inverse.fit._linearise")``."""
-    return lambda fn: cached_program(fn, name)
+    return lambda fn: cached_program(fn, name, compiler_options)
