@@ -8,8 +8,9 @@ after:
   empty cache folder (``--cache-dir``: compilation cache and condensed tables), the second run
   on the same folder; medians (and min, max);
 - the table condensation at 20 × 10, 60 × 30 and 100 × 50 elements: first call in a fresh
-  process (with compilation) and steady state (median of the next calls, thicknesses varied so
-  that nothing is reused), no table cache;
+  process and steady state (median of the next calls, thicknesses varied so that nothing is
+  reused), no table cache; concrete inputs, so NumPy (``condense(backend="auto")``: no
+  tracing or compilation; the compiled JAX program serves traced inputs);
 - the 141-position majda2012 sweep (``joint_errors``), steady state (median of 15 calls).
 
 Run: ``python bench/bench_cli.py [--repeats 3] [--skip-cli] [--skip-steady]`` from the repository

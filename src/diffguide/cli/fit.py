@@ -341,6 +341,8 @@ def run(args) -> int:
     from ._common import machine_config
 
     _store_linearisation()
+    if not args.no_plots:
+        _import_plotting_meanwhile()
     t_start = time.perf_counter()
     _check_out(Path(args.out))
     cfg = machine_config(args)
@@ -453,6 +455,24 @@ def run(args) -> int:
               file=sys.stderr)
     sys.stdout.flush()
     return 0 if elastic.converged else EXIT_NOT_CONVERGED
+
+
+def _import_plotting_meanwhile() -> None:
+    """Import matplotlib's figure machinery in a background thread: ~0.5 s of imports (its
+    artists build their docstrings at class creation) that then overlap the fit's compilation
+    and solves, which run without the GIL."""
+    import threading
+
+    def load():
+        try:
+            import matplotlib.backends.backend_agg  # noqa: F401
+            import matplotlib.figure  # noqa: F401
+
+            from ..plotting import fit  # noqa: F401
+        except Exception:  # pragma: no cover - the figures import it again and report it
+            pass
+
+    threading.Thread(target=load, name="diffguide-import-plotting", daemon=True).start()
 
 
 def _store_linearisation() -> None:
