@@ -21,6 +21,9 @@ import optimistix as optx
 
 _ARMIJO = 1e-4
 _HALVINGS = 40
+#: Predicted decrease of Π, relative to |Π|, below which the Newton step is taken without the
+#: line search (the Armijo test cannot tell such a change from round-off).
+_SETTLED = 1e-8
 _ADJOINT = optx.ImplicitAdjoint(linear_solver=lx.LU())
 
 
@@ -39,9 +42,15 @@ def _newton_loop(inputs):
         slope = jnp.dot(g, d)
         slack = 1e-13 * jnp.abs(p0)
 
+        # near the solution (a Newton step whose predicted decrease is round-off on Π) the full
+        # step is taken without evaluating Π: the last iterations of a batch then skip the
+        # line search altogether
+        settled = finite & (-slope <= _SETTLED * jnp.abs(p0))
+
         def too_high(ts):
             t, p = ts
-            return (t > 1.0) | ((p > p0 + _ARMIJO * t * slope + slack) & (t > 2.0**-_HALVINGS))
+            return jnp.where(t > 1.0, ~settled,
+                             (p > p0 + _ARMIJO * t * slope + slack) & (t > 2.0**-_HALVINGS))
 
         def shrink(ts):
             t, _ = ts
@@ -51,6 +60,8 @@ def _newton_loop(inputs):
         # potential appears once in the compiled loop (it is most of the program)
         start = (jnp.full((), 2.0, y.dtype), jnp.full((), jnp.inf, y.dtype))
         t, p = jax.lax.while_loop(too_high, shrink, start)
+        p = jnp.where(settled, p0 + 0.5 * slope, p)  # Π to second order (Hd = −g)
+        t = jnp.minimum(t, 1.0)
         step = t * d
         return y + step, jnp.max(jnp.abs(step)), k + 1, p
 
