@@ -340,7 +340,6 @@ def run(args) -> int:
     from ..studies.iso230_2 import channel_figures
     from ._common import machine_config
 
-    _store_linearisation()
     if not args.no_plots:
         _import_plotting_meanwhile()
     t_start = time.perf_counter()
@@ -473,17 +472,6 @@ def _import_plotting_meanwhile() -> None:
             pass
 
     threading.Thread(target=load, name="diffguide-import-plotting", daemon=True).start()
-
-
-def _store_linearisation() -> None:
-    """The fit's linearisation as an exported program in the cache folder
-    (:mod:`diffguide._core.aot`: a second run does not trace it), unless
-    :mod:`diffguide.inverse.fit` wraps it itself."""
-    from .._core.aot import cached_program
-    from ..inverse import fit as fit_module
-
-    if not isinstance(fit_module._linearise, cached_program):
-        fit_module._linearise = cached_program(fit_module._linearise, "inverse.fit._linearise")
 
 
 def _jsonable(obj):
