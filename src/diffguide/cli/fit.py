@@ -492,19 +492,14 @@ def _jsonable(obj):
 
 
 def _figures(meas, fits, profiles, s_m, truth):
-    """The two figures, built on bare ``Figure`` objects (no pyplot: its import and figure
-    management cost ~0.4 s) with fixed margins (``tight_layout`` on the curves' panels cost
-    ~1 s); saved by :func:`_write_dir`."""
-    from matplotlib.figure import Figure
-
+    """The two figures on bare ``Figure`` objects (no pyplot: its import and figure management
+    cost ~0.4 s) with fixed margins (``tight_layout`` on the curves' panels cost ~1 s); saved
+    by :func:`_write_dir`."""
     from ..io.measurements import QUANTITIES
-    from ..plotting.fit import plot_curves, plot_profiles
+    from ..plotting.fit import curves_figure, profiles_figure
 
     labels = {"": "elastic", "_rigid": "rigid table"}
-    fig1 = Figure(figsize=(12, 7))
-    ax1 = fig1.subplots(2, 1, sharex=True)
-    fig1.subplots_adjust(left=0.06, right=0.845, top=0.93, bottom=0.075, hspace=0.07)
-    plot_profiles(s_m, {labels[k]: v for k, v in profiles.items()}, truth=truth, ax=ax1)
+    fig1 = profiles_figure(s_m, {labels[k]: v for k, v in profiles.items()}, truth=truth)
     chan = meas.channel_index()
     channels = []
     for c, (_, q, _) in enumerate(meas.channels):
@@ -514,15 +509,7 @@ def _figures(meas, fits, profiles, s_m, truth):
         channels.append((meas.channel_label(c), unit,
                          meas.position[sel] * 1e3, meas.value[sel] * 1e6,
                          meas.sigma[sel] * 1e6, fits[""].fitted[sel] * 1e6, rigid))
-    cols = min(len(channels), 2)
-    rows = (len(channels) + cols - 1) // cols
-    height = 2.6 * rows  # inches; margins in inches below
-    fig2 = Figure(figsize=(6 * cols, height))
-    ax2 = fig2.subplots(rows, cols, squeeze=False, sharex=True)
-    fig2.subplots_adjust(left=0.06 * 2 / cols, right=1 - 0.015 * 2 / cols,
-                         top=1 - 0.75 / height, bottom=0.45 / height, hspace=0.2, wspace=0.15)
-    plot_curves(channels, ax=ax2)
-    return {"profiles.png": fig1, "curves.png": fig2}
+    return {"profiles.png": fig1, "curves.png": curves_figure(channels)}
 
 
 def _error_sigma(machine, fit, x_m, j):

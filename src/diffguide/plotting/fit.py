@@ -118,3 +118,37 @@ def plot_curves(channels, *, title: str = "", ax=None):
     if ax is None:  # given Axes: the caller owns the layout (tight_layout costs ~1 s here)
         fig.tight_layout()
     return axes
+
+
+def profiles_figure(s_m, profiles, *, truth=None, title: str = ""):
+    """:func:`plot_profiles` on a new bare ``Figure`` (no pyplot: nothing to close; for files)
+    with fixed margins (a layout engine costs a second or so per figure)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12, 7))
+    ax = fig.subplots(2, 1, sharex=True)
+    fig.subplots_adjust(left=0.06, right=0.845, top=0.93, bottom=0.075, hspace=0.07)
+    plot_profiles(s_m, profiles, truth=truth, title=title, ax=ax)
+    return fig
+
+
+def curves_figure(channels, *, title: str = ""):
+    """:func:`plot_curves` on a new bare ``Figure`` with fixed margins (in inches: the panels
+    keep their size whatever the number of channels)."""
+    from matplotlib.figure import Figure
+
+    cols = min(len(channels), 2)
+    rows = (len(channels) + cols - 1) // cols
+    height = 2.6 * rows
+    fig = Figure(figsize=(6 * cols, height))
+    ax = fig.subplots(rows, cols, squeeze=False, sharex=True)
+    fig.subplots_adjust(
+        left=0.06 * 2 / cols,
+        right=1 - 0.015 * 2 / cols,
+        top=1 - 0.75 / height,
+        bottom=0.45 / height,
+        hspace=0.2,
+        wspace=0.15,
+    )
+    plot_curves(channels, title=title, ax=ax)
+    return fig
