@@ -221,3 +221,16 @@ def test_gross_outliers_are_set_aside_and_clean_data_kept():
     rejected = [len(merge_readings(parse_readings(_outlier_text(rng, 36, 5, 4.0, set())))
                     .rejected) for _ in range(10)]
     assert sum(rejected) <= 1, rejected
+
+
+def test_leave_one_out_deviation_matches_a_median_per_reading():
+    """The order-statistic form equals ``|v_k − median(v without v_k)|`` computed one median at a
+    time, for every length and with ties."""
+    from diffguide.io.measurements import leave_one_out_deviation
+
+    rng = np.random.default_rng(1)
+    for n in range(2, 14):
+        for trial in range(50):
+            v = rng.integers(0, 4, n).astype(float) if trial % 2 else rng.normal(size=n)
+            ref = [abs(v[k] - np.median(np.delete(v, k))) for k in range(n)]
+            np.testing.assert_allclose(leave_one_out_deviation(v), ref, rtol=0, atol=1e-15)

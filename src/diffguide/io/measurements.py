@@ -256,26 +256,42 @@ def _reject_outliers(groups) -> set[int]:
     distance from the median of the *other* readings of its direction at that position; its
     robust scale, pooled over the channel, is 1.4826 × the median of the same statistic, so the
     ratio is a standard normal deviate for clean data whatever the run count."""
-    def loo(v):
-        return np.array([abs(v[k] - np.median(np.delete(v, k))) for k in range(len(v))])
-
     dev = defaultdict(list)
+    stats = []  # (channel, rows, statistics) of every group with enough runs
     for (p, q, inst, _), dirs in groups.items():
         for rows in dirs.values():
             if len(rows) >= MIN_RUNS_FOR_OUTLIERS:
-                dev[(p, q, inst)].extend(loo(np.array([r.value for r in rows])).tolist())
-    scale = {k: 1.4826 * float(np.median(d)) for k, d in dev.items() if len(d) >= 10}
+                d = leave_one_out_deviation(np.array([r.value for r in rows]))
+                dev[(p, q, inst)].append(d)
+                stats.append(((p, q, inst), rows, d))
+    scale = {k: 1.4826 * float(np.median(np.concatenate(d))) for k, d in dev.items()
+             if sum(map(len, d)) >= 10}
     out = set()
-    for (p, q, inst, _), dirs in groups.items():
-        sc = scale.get((p, q, inst))
-        if not sc:
-            continue
-        for rows in dirs.values():
-            if len(rows) < MIN_RUNS_FOR_OUTLIERS:
-                continue
-            d = loo(np.array([r.value for r in rows]))
+    for key, rows, d in stats:
+        sc = scale.get(key)
+        if sc:
             out.update(id(r) for r, dk in zip(rows, d) if dk > OUTLIER_Z * sc)
     return out
+
+
+def leave_one_out_deviation(v) -> np.ndarray:
+    """``|v_k − median(v without v_k)|`` for every ``k``, without a median per ``k``: the median
+    of the other ``n − 1`` values is one order statistic of ``v`` (two, averaged, when ``n − 1``
+    is even), the ``j``-th of the others being the ``j``-th of ``v`` below ``v_k``'s rank and
+    the ``(j+1)``-th from it on."""
+    v = np.asarray(v, dtype=float)
+    n = v.size
+    order = np.argsort(v, kind="stable")
+    s = v[order]
+    rank = np.empty(n, dtype=int)
+    rank[order] = np.arange(n)
+
+    def others(j: int) -> np.ndarray:
+        return s[np.where(j < rank, j, j + 1)]
+
+    m = n - 1
+    med = others((m - 1) // 2) if m % 2 else 0.5 * (others(m // 2 - 1) + others(m // 2))
+    return np.abs(v - med)
 
 
 def merge_readings(readings, source: str = "<readings>") -> Measurements:
