@@ -72,6 +72,7 @@ BAD = [
     ('[fit]\nstructure = "guess"', "key 'fit.structure': 'guess' is not allowed"),
     ("[fit]\nlambda = 3", "key 'fit.lambda' is unknown"),
     ("[fit]\nrigid = 1", "key 'fit.rigid': must be true or false"),
+    ("[fit]\nrail_waviness_um = -0.5", "key 'fit.rail_waviness_um': -0.5 outside"),
 ]
 
 

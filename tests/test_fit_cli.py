@@ -98,6 +98,8 @@ def test_report_against_truth(out_dir):
     assert abs(th["value"] - 50.0) <= 2 * th["sigma"] and th["determined_by_data"]
     ident = rep["identifiability"]
     assert {"gauge", "singular_values", "wavelengths", "regularisation"} <= set(ident)
+    res = el["resolution"]  # no waviness stated: the report says what the bands leave out
+    assert res["rail_waviness_um"] == 0.0 and "not include it" in res["note"]
 
 
 def test_failed_fit_leaves_no_output(tmp_path, capsys):
@@ -108,6 +110,14 @@ def test_failed_fit_leaves_no_output(tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"{bad}:2: field 'value'" in err
     assert not out.exists() and list(tmp_path.iterdir()) == [bad]
+
+
+def test_bad_waviness_is_refused_before_any_work(tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["fit", "--measurements", str(DATA), "--out", str(out),
+                 "--rail-waviness-um", "-0.1", "--quiet"]) == 2
+    assert "--rail-waviness-um must be an RMS in [0, 100]" in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_off_table_point_and_foreign_out_dir(tmp_path, capsys):

@@ -76,6 +76,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="prior of the preload (fraction of C), as for the thickness; default: the "
                    "config's [fit] preload_prior, else the machine's preload and [0.25, 2] "
                    "times it")
+    p.add_argument("--rail-waviness-um", type=float, default=None, metavar="RMS",
+                   help="RMS (µm) of the rails' short-wave content, shorter than about two knot "
+                   "spacings, which the carriages average out and the data cannot show (state "
+                   "it from the rails' grade): added in quadrature to every profile σ; default: "
+                   "the config's [fit] rail_waviness_um, else 0 (the bands cover only what the "
+                   "knots resolve)")
     p.add_argument("--nx", type=int, default=None, help=argparse.SUPPRESS)  # deprecated: --mesh
     p.add_argument("--ny", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--rigid", dest="rigid", action="store_const", const=True, default=None,
@@ -141,6 +147,9 @@ def _check_inputs(meas, args, cfg):
         raise ValueError(f"--max-steps must be an integer in [0, 10000], got {args.max_steps}")
     if args.lam is not None and not (np.isfinite(args.lam) and args.lam > 0):
         raise ValueError(f"--lambda must be a finite number > 0, got {args.lam}")
+    w = args.rail_waviness_um
+    if w is not None and not (np.isfinite(w) and 0.0 <= w <= 100.0):
+        raise ValueError(f"--rail-waviness-um must be an RMS in [0, 100] µm, got {w}")
     for name in ("nx", "ny"):
         v = getattr(args, name)
         if v is not None and not 1 <= v <= 200:
@@ -232,6 +241,15 @@ def _summary(fit, meas, seconds) -> dict:
         "chi2": fit.chi2, "dof": fit.dof,
         "chi2_per_dof": None if not np.isfinite(fit.chi2_dof) else fit.chi2_dof,
         "sigma_scale": fit.sigma_scale, "effective_parameters": fit.edf,
+        "resolution": {
+            "knot_spacing_mm": fit.basis.spacing * 1e3,
+            "rail_waviness_um": fit.waviness * 1e6,
+            "note": (f"content shorter than about {2 * fit.basis.spacing * 1e3:.0f} mm (two knot "
+                     "spacings) is not resolved; "
+                     + (f"a stated waviness of {fit.waviness * 1e6:.3g} µm RMS is in every σ"
+                        if fit.waviness > 0 else
+                        "the bands do not include it (state --rail-waviness-um)")),
+        },
         "structure": structure,
         "outlier_rows": [{"position_mm": float(meas.position[i] * 1e3),
                           "channel": meas.channel_label(int(chan[i])),
@@ -263,6 +281,15 @@ def fit_settings(args, cfg) -> tuple[str, str]:
     structure = args.structure or fit.get("structure") or "estimate"
     criterion = args.criterion or fit.get("criterion") or "ml"
     return structure, criterion
+
+
+def rail_waviness(args, cfg) -> float:
+    """The stated short-wave rail waviness (m RMS): ``--rail-waviness-um``, else the
+    configuration's ``[fit] rail_waviness_um``, else 0."""
+    um = args.rail_waviness_um
+    if um is None:
+        um = cfg.get("fit", {}).get("rail_waviness_um", 0.0)
+    return float(um) * 1e-6
 
 
 def rigid_wanted(args, cfg) -> bool:
@@ -374,6 +401,7 @@ def run(args) -> int:
         say(args, f"{'rigid-table' if label else 'elastic'} fit: compiling and solving ...")
         fits[label] = fit_rails(m, meas, knot_spacing=spacing, lam=args.lam,
                                 criterion=fit_settings(args, cfg)[1], max_steps=args.max_steps,
+                                waviness=rail_waviness(args, cfg),
                                 method="linear" if label else "lm")
         seconds[label] = time.perf_counter() - t
         f = fits[label]

@@ -239,7 +239,8 @@ class RailFit(eqx.Module):
             jacobian_full: the same w.r.t. all rail coefficients ``c`` (µm), gauge modes
             included. penalty: ``P``. n_theta: rail unknowns (first columns of ``jacobian``).
             Omega: the rail prior's matrix ``Ω`` (λ excluded). rigid: fitted with the rigid-table
-            model.
+            model. waviness: the stated RMS (m) of rail content shorter than the knot grid
+            resolves, in every σ of :meth:`profiles` (:func:`fit_rails`).
     """
 
     basis: RailBasis
@@ -270,6 +271,7 @@ class RailFit(eqx.Module):
     n_theta: int
     Omega: np.ndarray
     rigid: bool = eqx.field(static=True)
+    waviness: float = 0.0
 
     @property
     def chi2_dof(self) -> float:
@@ -282,7 +284,7 @@ class RailFit(eqx.Module):
 
     def profiles(self, s) -> tuple[np.ndarray, np.ndarray]:
         """Profiles and their posterior σ at ``s`` (m): two ``(2 rails, 2 planes, len(s))``
-        arrays (m)."""
+        arrays (m); ``σ² = bᵀ Cov b + waviness²`` (``b`` the basis functions at ``s``)."""
         B = self.basis.matrix(s)
         n = self.basis.n_coeffs
         val = np.einsum("sk,rpk->rps", B, self.coeffs)
@@ -290,7 +292,8 @@ class RailFit(eqx.Module):
         for k in range(4):
             r, p = divmod(k, 2)
             C = self.cov[k * n:(k + 1) * n, k * n:(k + 1) * n]
-            sig[r, p] = np.sqrt(np.maximum(np.einsum("sk,kl,sl->s", B, C, B), 0.0))
+            sig[r, p] = np.sqrt(np.maximum(np.einsum("sk,kl,sl->s", B, C, B), 0.0)
+                                + self.waviness**2)
         return val, sig
 
     def rails(self) -> tuple[SplineRail, SplineRail]:
@@ -377,6 +380,7 @@ def fit_rails(
     max_steps: int = 60,
     method: str = "lm",
     reject_outliers: bool = True,
+    waviness: float = 0.0,
 ) -> RailFit:
     """Fit the rail straightness profiles (and the structure) to merged measurements.
 
@@ -397,6 +401,12 @@ def fit_rails(
         method: ``"lm"`` (through the nonlinear model) or ``"linear"`` (linearised at straight
             rails and solved once: the classical linear inversion).
         reject_outliers: zero-weight merged values beyond :data:`OUTLIER_Z` and refit once.
+        waviness: RMS (m) of the rails' short-wave content — wavelengths shorter than about
+            two knot spacings, which the basis cannot represent and the carriages average out
+            (at the default knots, the carriage's loaded length) — as the user knows it from
+            the rails' grade. The data cannot estimate it (those wavelengths move no
+            carriage); it is added in quadrature to every profile σ. Default 0: the bands then
+            cover only what the knot grid resolves.
 
     Raises ``ValueError`` for inputs that cannot be fitted at all (mismatched points, fewer data
     than channels, a model that does not converge for straight rails); everything after that
@@ -404,6 +414,8 @@ def fit_rails(
     """
     if method not in ("lm", "linear"):
         raise ValueError(f"method must be 'lm' or 'linear', got {method!r}")
+    if not (np.isfinite(waviness) and waviness >= 0.0):
+        raise ValueError(f"waviness must be a finite RMS >= 0 m, got {waviness!r}")
     require_x64("fit_rails")
     family = _as_family(machine)
     base = family.base
@@ -633,7 +645,7 @@ def fit_rails(
         dof=dof, edf=edf, sigma_scale=sigma_scale, converged=bool(converged), message=message,
         steps=steps, jacobian=J, jacobian_full=Jc, penalty=P, n_theta=n_theta,
         Omega=Om_curv + choice.kappa * Om_amp,
-        rigid=bool(base.rigid),
+        rigid=bool(base.rigid), waviness=float(waviness),
     )
 
 

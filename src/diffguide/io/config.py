@@ -248,6 +248,13 @@ FIT_SCHEMA: dict[str, tuple] = {
         None,
         "regularisation weight: marginal likelihood (ml) or generalised cross-validation (gcv)",
     ),
+    "rail_waviness_um": (
+        0.0,
+        "float",
+        0.0,
+        100.0,
+        "RMS of the rails' short-wave content the knots do not resolve (µm), added to every σ",
+    ),
     "rigid": (
         False,
         "bool",
