@@ -211,10 +211,10 @@ class SplineRail(AbstractRailProfile):
     def __call__(self, s):
         s = jnp.asarray(s, dtype=float)
         idx, w = bspline_basis((s - self.start) / self.spacing, self.n_coeffs)
-        take = lambda c: jnp.sum(  # noqa: E731
-            jnp.stack([jnp.asarray(c)[idx + k] for k in range(4)], axis=-1) * w, axis=-1
-        )
-        return take(self.horizontal), take(self.vertical)
+        # both planes' four active coefficients in one gather (a small traced program)
+        c = jnp.stack([jnp.asarray(self.horizontal), jnp.asarray(self.vertical)])
+        e = jnp.sum(c[:, idx[..., None] + jnp.arange(4)] * w, axis=-1)
+        return e[0], e[1]
 
     @classmethod
     def fit(

@@ -119,13 +119,14 @@ class Machine(eqx.Module):
     ) -> Float[Array, "k n 2"]:
         """Rail deviation ``(e_y, e_z)`` (m) under every element of every carriage at ``x`` (m)."""
         xi = jnp.asarray(self.carriage.xi, dtype=float)
-        out = [None] * len(self.carriage_rail)
+        parts, order = [], []
         for r in sorted(set(self.carriage_rail)):  # one evaluation per rail (a smaller program)
             ks = [k for k, rk in enumerate(self.carriage_rail) if rk == r]
             ey, ez = rails[r](x + self.carriage_x[np.asarray(ks)][:, None] + xi)
-            for j, k in enumerate(ks):
-                out[k] = jnp.stack([ey[j], ez[j]], axis=-1)
-        return jnp.stack(out)
+            parts.append(jnp.stack([ey, ez], axis=-1))
+            order += ks
+        out = jnp.concatenate(parts)
+        return out if order == sorted(order) else out[np.argsort(order)]
 
 
 def _split(u, n_carriages):
@@ -162,12 +163,14 @@ def _grad_hess(y, args):
     F = carriage.element_forces(a).reshape(machine.n_carriages, -1)
     k = carriage.element_stiffnesses(a).reshape(machine.n_carriages, -1)
     wrenches = F @ G  # (k, 6): elements on the carriages = carriages on the table
-    tangents = jnp.einsum("ce,ei,ej->cij", k, G, G)  # (k, 6, 6): −d(wrench)/d(pose)
-    nc = 6 * machine.n_carriages
+    n = machine.n_carriages
+    nc = 6 * n
+    # the carriages' tangents −d(wrench)/d(pose), (k, 6, 6), as one block-diagonal (6k, 6k)
+    tangents = jnp.einsum("ce,ei,ej,cd->cidj", k, G, G, jnp.eye(n)).reshape(nc, nc)
     g = K @ u - f
     g = g.at[:nc].add(-wrenches.reshape(-1))
     g = g.at[machine.nut_dof].add(ks * u[machine.nut_dof])
-    H = K.at[:nc, :nc].add(jax.scipy.linalg.block_diag(*tangents))
+    H = K.at[:nc, :nc].add(tangents)
     H = H.at[machine.nut_dof, machine.nut_dof].add(ks)
     if Phi is not None:
         g, H = Phi.T @ g, Phi.T @ H @ Phi
