@@ -287,6 +287,7 @@ def _condense_checked(
     eager=False,
 ):
     if eager:  # concrete inputs: NumPy arrays throughout
+        xp = np
         mesh, plate, nodes, ref_xy, gravity = jax.tree_util.tree_map(
             lambda x: (
                 np.asarray(x, dtype=float)
@@ -295,43 +296,13 @@ def _condense_checked(
             ),
             (mesh, plate, nodes, ref_xy, gravity),
         )
-        sl = np.zeros(3) if surface_load is None else np.asarray(surface_load, dtype=float)
-        return _finish_numpy(
-            _condense_layout(
-                mesh,
-                plate,
-                owner,
-                block,
-                n_free,
-                quads,
-                patches,
-                points,
-                nodes,
-                ref_xy,
-                gravity,
-                sl,
-                method,
-                np,
-            )
-        )
-    mesh, plate, gravity = as_arrays((mesh, plate, gravity))
-    sl = jnp.zeros(3) if surface_load is None else jnp.asarray(surface_load, dtype=float)
-    return _condense_layout(
-        mesh,
-        plate,
-        owner,
-        block,
-        n_free,
-        quads,
-        patches,
-        points,
-        nodes,
-        ref_xy,
-        gravity,
-        sl,
-        method,
-        jnp,
-    )
+    else:
+        xp = jnp
+        mesh, plate, gravity = as_arrays((mesh, plate, gravity))
+    sl = xp.zeros(3) if surface_load is None else xp.asarray(surface_load, dtype=float)
+    table = _condense_layout(mesh, plate, owner, block, n_free, quads, patches, points, nodes,
+                             ref_xy, gravity, sl, method, xp)
+    return _finish_numpy(table) if eager else table
 
 
 def _finish_numpy(table: "CondensedTable") -> "CondensedTable":
