@@ -36,12 +36,14 @@ import hashlib
 import importlib.util
 import os
 import pickle
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import equinox as eqx
 import jax
+
+from .atomic import atomic_write
+from .fingerprint import code_fingerprint
 
 #: Bumped when the file layout changes.
 FORMAT = 1
@@ -70,19 +72,7 @@ def _code_version() -> str:
     """Hash of the package source and the versions that change a traced program."""
     global _code_hash
     if _code_hash is None:
-        from .. import __version__
-
-        h = hashlib.sha256(f"{FORMAT}|{__version__}|{jax.__version__}|".encode())
-        try:
-            import jaxlib
-
-            h.update(jaxlib.__version__.encode())
-        except (ImportError, AttributeError):  # pragma: no cover
-            pass
-        root = Path(__file__).resolve().parents[1]
-        for path in sorted(root.rglob("*.py")):
-            h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
-        _code_hash = h.hexdigest()
+        _code_hash = code_fingerprint(FORMAT, Path(__file__).resolve().parents[1], "**/*.py")
     return _code_hash
 
 
@@ -143,21 +133,6 @@ def _cpu_kernels_ready() -> bool:
 
 class _Array:
     """Marks where an output array goes in the stored output structure."""
-
-
-def _write(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:16]}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 class cached_program:
@@ -265,8 +240,8 @@ class cached_program:
             return None
         prog_path, out_path = self._paths(key)
         try:
-            _write(out_path, template)
-            _write(prog_path, bytes(blob))
+            atomic_write(out_path, lambda tmp: Path(tmp).write_bytes(template))
+            atomic_write(prog_path, lambda tmp: Path(tmp).write_bytes(bytes(blob)))
         except OSError:
             pass  # a folder that cannot be written to: run it anyway
         stats["exports"] += 1

@@ -1,13 +1,14 @@
 r"""Newton's method with a backtracking line search on a convex potential, differentiated
-implicitly through ``optimistix.ImplicitAdjoint``.
+implicitly.
 
 The equilibria of diffguide are stationary points of convex potentials
 :math:`Π(y) = ½yᵀKy − fᵀy + \sum_j φ(a_j(y))`. Plain Newton can overshoot into a region where
 whole rows of elements are lifted off (a singular tangent); with an Armijo backtracking on ``Π``
 every step decreases the potential and the iteration converges from any start. The loop is never
-differentiated: optimistix's implicit adjoint gives the derivatives of the root ``y*(θ)`` of the
-gradient ``g(y, θ) = ∂Π/∂y`` from the implicit function theorem,
-``dy*/dθ = −(∂g/∂y)⁻¹ ∂g/∂θ``, with one linear solve per tangent.
+differentiated: a ``custom_jvp`` gives the derivatives of the root ``y*(θ)`` of the gradient
+``g(y, θ) = ∂Π/∂y`` from the implicit function theorem, ``dy*/dθ = −(∂g/∂y)⁻¹ ∂g/∂θ``, with the
+closed-form Hessian's Cholesky factor shared by every tangent (optimistix's ``ImplicitAdjoint``
+with LU, used before, ran 10–40 times slower under ``jacfwd`` over many tangents).
 """
 
 import functools
@@ -15,7 +16,6 @@ from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
-import lineax as lx
 import numpy as np
 import optimistix as optx
 
@@ -24,13 +24,11 @@ _HALVINGS = 40
 #: Predicted decrease of Π, relative to |Π|, below which the Newton step is taken without the
 #: line search (the Armijo test cannot tell such a change from round-off).
 _SETTLED = 1e-8
-_ADJOINT = optx.ImplicitAdjoint(linear_solver=lx.LU())
 
 
 def _newton_loop(inputs):
     """The primal: damped Newton. Returns ``(y, (converged, steps))``."""
-    potential, grad_hess, y0, args, max_steps, tol, while_loop = inputs
-    del while_loop  # the loop is not differentiated; a plain lax loop serves
+    potential, grad_hess, y0, args, max_steps, tol = inputs
 
     def body(state):
         y, _, k, p0 = state
@@ -74,28 +72,13 @@ def _newton_loop(inputs):
     return y, (size <= tol, k)
 
 
-def _rewrite(root, _, inputs):
-    """The function whose root is differentiated: the potential's gradient."""
-    potential, grad_hess, _y0, args, *_ = inputs
-    del potential
-    return grad_hess(root, args)[0]
-
-
-#: How the equilibrium is differentiated: ``"cholesky"`` (default: :func:`_implicit_solve`, the
-#: tangent system solved with the closed-form Hessian's Cholesky factor, shared by every tangent)
-#: or ``"optimistix"`` (``ImplicitAdjoint`` with LU on the Jacobian of the gradient; kept as a
-#: reference: under ``jacfwd`` over many tangents it ran 10-40 times slower here).
-IMPLICIT = "cholesky"
-
-
 @functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2, 3))
 def _implicit_solve(potential, grad_hess, max_steps, tol, y0, args):
     """``(y*, converged, steps)``: the minimiser of ``potential`` from ``y0``. Its derivative is
     the implicit function theorem's, ``ẏ = −H⁻¹ (∂g/∂args)·ȧrgs`` with ``H = ∂²Π/∂y²`` at
     ``y*`` (the closed form of ``grad_hess``, SPD at a minimum: one Cholesky factor for all
     tangents); ``y0`` has no influence on ``y*``."""
-    inputs = (potential, grad_hess, y0, args, max_steps, tol, None)
-    y, (converged, steps) = _newton_loop(inputs)
+    y, (converged, steps) = _newton_loop((potential, grad_hess, y0, args, max_steps, tol))
     return y, converged, steps
 
 
@@ -145,11 +128,7 @@ def solve_equilibrium(
         ``nonfinite`` (an iterate became inf or NaN) or ``nonlinear_max_steps_reached`` — and
         the steps taken.
     """
-    if IMPLICIT == "optimistix":
-        inputs = (potential, grad_hess, y0, args, max_steps, tol)
-        y, (converged, steps) = _ADJOINT.apply(_newton_loop, _rewrite, inputs, frozenset())
-    else:
-        y, converged, steps = _implicit_solve(potential, grad_hess, max_steps, tol, y0, args)
+    y, converged, steps = _implicit_solve(potential, grad_hess, max_steps, tol, y0, args)
     finite = jnp.all(jnp.isfinite(jax.lax.stop_gradient(y)))
     result = optx.RESULTS.where(
         converged,

@@ -14,25 +14,28 @@ import numpy as np
 from .types import Array, Float
 
 
-def skew(v: Float[Array, "... 3"]) -> Float[Array, "... 3 3"]:
-    """``[v]×``: the matrix with ``skew(v) @ w = v × w``."""
-    v = jnp.asarray(v)
-    zero = jnp.zeros_like(v[..., 0])
+def skew(v: Float[Array, "... 3"], xp=jnp) -> Float[Array, "... 3 3"]:
+    """``[v]×``: the matrix with ``skew(v) @ w = v × w``; ``xp`` the array module
+    (:mod:`jax.numpy`, or :mod:`numpy` for eager evaluation)."""
+    v = xp.asarray(v)
+    zero = xp.zeros_like(v[..., 0])
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     rows = [
-        jnp.stack([zero, -z, y], axis=-1),
-        jnp.stack([z, zero, -x], axis=-1),
-        jnp.stack([-y, x, zero], axis=-1),
+        xp.stack([zero, -z, y], axis=-1),
+        xp.stack([z, zero, -x], axis=-1),
+        xp.stack([-y, x, zero], axis=-1),
     ]
-    return jnp.stack(rows, axis=-2)
+    return xp.stack(rows, axis=-2)
 
 
-def rigid_transfer(d: Float[Array, "... 3"]) -> Float[Array, "... 6 6"]:
+def rigid_transfer(d: Float[Array, "... 3"], xp=jnp) -> Float[Array, "... 6 6"]:
     """The ``6 × 6`` map of a small rigid motion ``(u, θ)`` at a point to the point offset by
-    ``d`` (m): ``(u + θ × d, θ)`` (module docstring)."""
-    d = jnp.asarray(d)
-    eye = jnp.broadcast_to(jnp.eye(6, dtype=d.dtype), (*d.shape[:-1], 6, 6))
-    return eye.at[..., :3, 3:].set(-skew(d))
+    ``d`` (m): ``(u + θ × d, θ)`` (module docstring); ``xp`` as for :func:`skew`."""
+    d = xp.asarray(d)
+    eye3 = xp.broadcast_to(xp.eye(3, dtype=d.dtype), d.shape[:-1] + (3, 3))
+    top = xp.concatenate([eye3, -skew(d, xp)], axis=-1)
+    bottom = xp.concatenate([xp.zeros_like(eye3), eye3], axis=-1)
+    return xp.concatenate([top, bottom], axis=-2)
 
 
 def transfer(motion: Float[Array, "... 6"], d: Float[Array, "... 3"]) -> Float[Array, "... 6"]:

@@ -8,19 +8,6 @@ import jax.numpy as jnp
 import numpy as np
 
 
-def skew(v, xp=jnp):
-    """(..., 3) -> (..., 3, 3) with ``skew(v) @ w = v × w``."""
-    z = xp.zeros_like(v[..., 0])
-    return xp.stack(
-        [
-            xp.stack([z, -v[..., 2], v[..., 1]], -1),
-            xp.stack([v[..., 2], z, -v[..., 0]], -1),
-            xp.stack([-v[..., 1], v[..., 0], z], -1),
-        ],
-        -2,
-    )
-
-
 def place(block, idx, n: int, xp=jnp):
     """An (..., n, n) matrix holding ``block`` (..., k, k) at rows and columns ``idx``."""
     P = np.zeros((len(idx), n))

@@ -24,8 +24,9 @@ vector ``e``, m, the same at both ends) and is tied rigidly to the node:
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.rigid import skew
 from .._core.types import Array, Float, ScalarLike
-from ._xp import congruence, place, skew
+from ._xp import congruence, place
 
 
 def beam_frame(

@@ -26,11 +26,13 @@ coordinates) bypasses the cache. The arrays read back are bit-identical to those
 
 import hashlib
 import os
-import tempfile
 from pathlib import Path
 
 import jax
 import numpy as np
+
+from .._core.atomic import atomic_write
+from .._core.fingerprint import code_fingerprint
 
 #: Bumped when the file layout changes.
 FORMAT = 1
@@ -56,19 +58,7 @@ def table_cache_dir() -> Path | None:
 def _code_version() -> str:
     global _code_hash
     if _code_hash is None:
-        from .. import __version__
-
-        h = hashlib.sha256()
-        h.update(f"{FORMAT}|{__version__}|{jax.__version__}|".encode())
-        try:
-            import jaxlib
-
-            h.update(jaxlib.__version__.encode())
-        except (ImportError, AttributeError):  # pragma: no cover
-            pass
-        for path in sorted(Path(__file__).parent.glob("*.py")):
-            h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
-        _code_hash = h.hexdigest()
+        _code_hash = code_fingerprint(FORMAT, Path(__file__).parent, "*.py")
     return _code_hash
 
 
@@ -129,21 +119,9 @@ def store(key: str | None, table) -> None:
         isinstance(v, jax.core.Tracer) for v in jax.tree_util.tree_leaves(table)
     ):
         return
-    tmp = None
+    arrays = {k: np.asarray(getattr(table, k)) for k in _FIELDS}
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        arrays = {k: np.asarray(getattr(table, k)) for k in _FIELDS}
-        fd, tmp = tempfile.mkstemp(prefix=f".{key[:16]}.", suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, key=np.asarray(key), **arrays)
-        os.replace(tmp, path)
-        tmp = None
+        atomic_write(path, lambda tmp: np.savez(tmp, key=np.asarray(key), **arrays))
         stats["writes"] += 1
     except OSError:
         pass
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass

@@ -34,11 +34,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.rigid import rigid_transfer
 from .._precision import require_x64
 from .._types import Array, Float, ScalarLike
 from . import banded
 from . import cache as table_cache
-from ._xp import congruence, skew
+from ._xp import congruence
 from .assemble import PlateSection, as_arrays, element_arrays_xp
 from .mesh import TableMesh
 from .shell import shell_frame, shell_natural_coords, shell_shape
@@ -152,14 +153,6 @@ def _topology(mesh: TableMesh, patches: Sequence[RigidPatch], points: Sequence):
     return owner, block, n_free, quads
 
 
-def _rigid(d, xp=jnp):
-    """(..., 3) offsets -> (..., 6, 6) maps [u; θ] -> [u + θ × d; θ]."""
-    eye3 = xp.broadcast_to(xp.eye(3, dtype=d.dtype), d.shape[:-1] + (3, 3))
-    top = xp.concatenate([eye3, -skew(d, xp)], axis=-1)
-    bottom = xp.concatenate([xp.zeros_like(eye3), eye3], axis=-1)
-    return xp.concatenate([top, bottom], axis=-2)
-
-
 def _spd_solve(A, B, xp=jnp):
     """``A⁻¹ B`` for SPD ``A`` by Cholesky, differentiated as a linear solve: a tangent costs
     one more pair of triangular solves, ``dX = A⁻¹ (dB − dA X)``, not the derivative of the
@@ -250,42 +243,6 @@ def condense(
         cached = table_cache.load(key)
         if cached is not None:
             return cached
-    table = _condense_checked(
-        mesh,
-        plate,
-        owner,
-        block,
-        n_free,
-        quads,
-        patches,
-        points,
-        nodes,
-        ref_xy,
-        gravity,
-        surface_load,
-        method,
-        eager,
-    )
-    table_cache.store(key, table)
-    return table
-
-
-def _condense_checked(
-    mesh,
-    plate,
-    owner,
-    block,
-    n_free,
-    quads,
-    patches,
-    points,
-    nodes,
-    ref_xy,
-    gravity,
-    surface_load,
-    method,
-    eager=False,
-):
     if eager:  # concrete inputs: NumPy arrays throughout
         xp = np
         mesh, plate, nodes, ref_xy, gravity = jax.tree_util.tree_map(
@@ -302,7 +259,10 @@ def _condense_checked(
     sl = xp.zeros(3) if surface_load is None else xp.asarray(surface_load, dtype=float)
     table = _condense_layout(mesh, plate, owner, block, n_free, quads, patches, points, nodes,
                              ref_xy, gravity, sl, method, xp)
-    return _finish_numpy(table) if eager else table
+    if eager:
+        table = _finish_numpy(table)
+    table_cache.store(key, table)
+    return table
 
 
 def _finish_numpy(table: "CondensedTable") -> "CondensedTable":
@@ -430,7 +390,7 @@ def _condense_impl(
         ref = xp.concatenate([xp.asarray(ref_xy, dtype=float), ref[:, 2:]], axis=1)
     slave = owner >= 0
     d = xyz - ref[xp.where(slave, owner, 0)]
-    A = xp.where(slave[:, None, None], _rigid(d, xp), xp.eye(6))  # node DOF = A @ block DOF
+    A = xp.where(slave[:, None, None], rigid_transfer(d, xp), xp.eye(6))  # node DOF = A @ block DOF
 
     parts = []
     for ea in element_arrays_xp(mesh, plate, nodes, gravity, sl, xp):
@@ -482,7 +442,7 @@ def _condense_impl(
         s = shell_natural_coords(exyz, xp.asarray(pts), xp) if nat is None else xp.asarray(nat)
         N = shell_shape(s[:, 0], s[:, 1], xp)  # (n_pts, 4)
         R, _ = shell_frame(exyz, xp)
-        W = N[:, :, None, None] * _rigid(0.5 * t * R[:, 2], xp)[:, None]  # (n_pts, 4, 6, 6)
+        W = N[:, :, None, None] * rigid_transfer(0.5 * t * R[:, 2], xp)[:, None]  # (n_pts, 4, 6, 6)
         Rm = xp.einsum("pkab,pkbm->pam", W, node_modes[qn]).reshape(-1, m)
         r0 = xp.einsum("pkab,pkb->pa", W, node_u0[qn]).reshape(-1)
     else:

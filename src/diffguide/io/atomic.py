@@ -5,32 +5,9 @@ interrupted run never leaves a half-written file that looks valid.
 """
 
 import os
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 
-
-def atomic_write(path: str | os.PathLike, write: Callable[[str], None]) -> Path:
-    """Call ``write(tmp_path)`` and rename the result to ``path`` atomically.
-
-    The temporary file lives in the same folder (same file system), and keeps the destination's
-    suffix so that writers choosing a format by extension (``savefig``) behave the same.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
-    os.close(fd)
-    try:
-        write(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+from .._core.atomic import atomic_write as atomic_write  # the one implementation
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
