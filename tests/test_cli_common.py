@@ -128,3 +128,17 @@ def test_montecarlo_mounting_choices_match_the_library():
     from diffguide.studies.random_rails import MOUNTING_CLASSES
 
     assert set(MOUNTING_CHOICES) == set(MOUNTING_CLASSES)
+
+
+def test_the_command_passes_its_exit_status_and_messages_through_its_quick_exit(tmp_path):
+    """``python -m diffguide.cli`` ends with ``os._exit`` after its outputs: the status and
+    the message on stderr must still arrive."""
+    missing = tmp_path / "none.csv"
+    out = subprocess.run(
+        [sys.executable, "-m", "diffguide.cli", "fit", "--measurements", str(missing),
+         "--out", str(tmp_path / "o"), "--no-cache"],
+        capture_output=True, text=True,
+    )
+    assert out.returncode == 2, out.stderr
+    assert "none.csv" in out.stderr and "error" in out.stderr
+    assert not (tmp_path / "o").exists()

@@ -120,7 +120,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--tol-urad", type=float, default=5.0,
                    help="warn where another point's EAX/EBX/ECX depart from --at's by more (µrad)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, figure_worker=True)
     return p
 
 
@@ -335,40 +335,58 @@ def _check_out(out: Path) -> Path:
     return out
 
 
-def _write_dir(out: Path, files: dict[str, object]) -> None:
-    """Write ``files`` ({name: text or figure}) into a temporary folder next to ``out`` and
-    rename it into place; an earlier output folder is replaced only at the very end."""
-    out = _check_out(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
-    try:
+class _Staging:
+    """The output folder, written into a temporary folder next to ``out`` and renamed into
+    place by :meth:`commit` (an earlier output folder is replaced only then); on an exception
+    inside the ``with`` block the temporary folder is removed."""
+
+    def __init__(self, out: Path):
+        self.out = _check_out(out)
+        self.out.parent.mkdir(parents=True, exist_ok=True)
+        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.", suffix=".tmp",
+                                         dir=self.out.parent))
+
+    def __enter__(self) -> "_Staging":
+        return self
+
+    def __exit__(self, kind, *exc) -> None:
+        if kind is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def write(self, files: dict[str, object]) -> None:
+        """``files``: {name: text or matplotlib figure}."""
         for name, content in files.items():
             if isinstance(content, str):
-                (tmp / name).write_text(content, encoding="utf-8")
+                (self.tmp / name).write_text(content, encoding="utf-8")
             else:
-                content.savefig(tmp / name, dpi=110)
+                content.savefig(self.tmp / name, dpi=110)
+
+    def commit(self) -> None:
         old = None
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
-            os.replace(out, old / out.name)
-        os.replace(tmp, out)
+        if self.out.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.", suffix=".old",
+                                        dir=self.out.parent))
+            os.replace(self.out, old / self.out.name)
+        os.replace(self.tmp, self.out)
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+
+
+def _write_dir(out: Path, files: dict[str, object]) -> None:
+    """Write ``files`` ({name: text or figure}) into ``out`` at once (:class:`_Staging`)."""
+    with _Staging(out) as staged:
+        staged.write(files)
+        staged.commit()
 
 
 def run(args) -> int:
-    from ..inverse import MachineFamily, fit_rails, identifiability
+    from ..inverse import MachineFamily, fit_rails
     from ..io.config import spec_from_config
     from ..io.importers import read_any
     from ..machine.build import build_machine
-    from ..studies.iso230_2 import channel_figures
+    from ..plotting.render import FigureWorker
     from ._common import machine_config
 
-    if not args.no_plots:
-        _import_plotting_meanwhile()
     t_start = time.perf_counter()
     _check_out(Path(args.out))
     cfg = machine_config(args)
@@ -422,52 +440,27 @@ def run(args) -> int:
     s_m = np.unique(np.clip(np.concatenate([[basis.start], s_m, [basis.end]]), basis.start,
                             basis.end))
     profiles = {label: f.profiles(s_m) for label, f in fits.items()}
-    report = {
-        "command": "diffguide fit", "preset": None if args.config else args.preset,
-        "config": args.config,
-        "status": {"converged": bool(elastic.converged), "message": elastic.message,
-                   "exit_code": 0 if elastic.converged else EXIT_NOT_CONVERGED},
-        "measurements": {
-            "file": str(args.measurements), "readings": len(meas.readings), "merged_rows": meas.n,
-            "points": {n: [float(x * 1e3), float(y * 1e3)] for n, (x, y) in
-                       zip(meas.point_names, meas.points_xy)},
-            "sigma_sources": sorted(set(meas.sigma_source)),
-            "rejected_reading_lines": list(meas.rejected),
-        },
-        "iso230_2": channel_figures(meas),  # per channel where the runs allow (studies/iso230_2)
-        "elastic": _summary(elastic, meas, seconds[""]),
-        "identifiability": identifiability(elastic, machine),
-    }
-    if "_rigid" in fits:
-        report["rigid_table"] = _summary(fits["_rigid"], meas, seconds["_rigid"])
-        dv = profiles[""][0] - profiles["_rigid"][0]
-        report["elastic_vs_rigid_profile_rms_difference_um"] = {
-            f"rail {r + 1} {pl}": float(np.sqrt(np.mean(dv[r, p] ** 2)) * 1e6)
-            for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))}
     truth = None
     if args.truth:
         raw = read_truth(args.truth, s_m)
         flat = basis.gauge_fix(s_m, raw.reshape(4, -1), elastic.fix_slope)
         truth = flat.reshape(2, 2, -1)
-        report["truth"] = {"file": str(args.truth), "rms_error_um": {}, "coverage_2sigma": {}}
-        for label, (val, sig) in profiles.items():
-            name = "rigid_table" if label else "elastic"
-            err = val - truth
-            report["truth"]["rms_error_um"][name] = {
-                f"rail {r + 1} {pl}": float(np.sqrt(np.mean(err[r, p] ** 2)) * 1e6)
-                for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))}
-            report["truth"]["rms_error_um"][name]["all"] = float(np.sqrt(np.mean(err**2)) * 1e6)
-            report["truth"]["coverage_2sigma"][name] = float(np.mean(np.abs(err) <= 2 * sig))
-        report["truth"]["rms_truth_um"] = float(np.sqrt(np.mean(truth**2)) * 1e6)
-    files = {"rails.csv": _rails_csv(s_m, *profiles[""])}
-    if "_rigid" in fits:
-        files["rails_rigid.csv"] = _rails_csv(s_m, *profiles["_rigid"])
-    files["fit.csv"] = _fit_csv(meas, fits)
-    if not args.no_plots:
-        files.update(_figures(meas, fits, profiles, s_m, truth))
-    report["total_seconds"] = time.perf_counter() - t_start
-    files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
-    _write_dir(Path(args.out), files)
+    with _Staging(Path(args.out)) as staged:
+        figures = getattr(args, "figures", None) or FigureWorker()
+        plots = {} if args.no_plots else _figures(meas, fits, profiles, s_m, truth)
+        if plots:  # drawn by the figures' process while the rest is computed
+            figures.submit(staged.tmp, list(plots.items()), dpi=110)
+        report = _report(args, meas, fits, profiles, truth, seconds, machine)
+        files = {"rails.csv": _rails_csv(s_m, *profiles[""])}
+        if "_rigid" in fits:
+            files["rails_rigid.csv"] = _rails_csv(s_m, *profiles["_rigid"])
+        files["fit.csv"] = _fit_csv(meas, fits)
+        report["total_seconds"] = time.perf_counter() - t_start
+        files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
+        staged.write(files)
+        figures.wait()
+        staged.commit()
+    files.update(plots)
     if args.export_compensation:
         _export_compensation(args, cfg, points, elastic, family, info.get("x0_mm", 0.0))
     if args.truth:
@@ -484,22 +477,47 @@ def run(args) -> int:
     return 0 if elastic.converged else EXIT_NOT_CONVERGED
 
 
-def _import_plotting_meanwhile() -> None:
-    """Import matplotlib's figure machinery in a background thread: ~0.5 s of imports (its
-    artists build their docstrings at class creation) that then overlap the fit's compilation
-    and solves, which run without the GIL."""
-    import threading
+def _report(args, meas, fits, profiles, truth, seconds, machine) -> dict:
+    """report.json's content (without ``total_seconds``)."""
+    from ..inverse import identifiability
+    from ..studies.iso230_2 import channel_figures
 
-    def load():
-        try:
-            import matplotlib.backends.backend_agg  # noqa: F401
-            import matplotlib.figure  # noqa: F401
-
-            from ..plotting import fit  # noqa: F401
-        except Exception:  # pragma: no cover - the figures import it again and report it
-            pass
-
-    threading.Thread(target=load, name="diffguide-import-plotting", daemon=True).start()
+    elastic = fits[""]
+    report = {
+        "command": "diffguide fit", "preset": None if args.config else args.preset,
+        "config": args.config,
+        "status": {"converged": bool(elastic.converged), "message": elastic.message,
+                   "exit_code": 0 if elastic.converged else EXIT_NOT_CONVERGED},
+        "measurements": {
+            "file": str(args.measurements), "readings": len(meas.readings),
+            "merged_rows": meas.n,
+            "points": {n: [float(x * 1e3), float(y * 1e3)] for n, (x, y) in
+                       zip(meas.point_names, meas.points_xy)},
+            "sigma_sources": sorted(set(meas.sigma_source)),
+            "rejected_reading_lines": list(meas.rejected),
+        },
+        "iso230_2": channel_figures(meas),  # per channel where the runs allow
+        "elastic": _summary(elastic, meas, seconds[""]),
+        "identifiability": identifiability(elastic, machine),
+    }
+    if "_rigid" in fits:
+        report["rigid_table"] = _summary(fits["_rigid"], meas, seconds["_rigid"])
+        dv = profiles[""][0] - profiles["_rigid"][0]
+        report["elastic_vs_rigid_profile_rms_difference_um"] = {
+            f"rail {r + 1} {pl}": float(np.sqrt(np.mean(dv[r, p] ** 2)) * 1e6)
+            for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))}
+    if args.truth:
+        report["truth"] = {"file": str(args.truth), "rms_error_um": {}, "coverage_2sigma": {}}
+        for label, (val, sig) in profiles.items():
+            name = "rigid_table" if label else "elastic"
+            err = val - truth
+            report["truth"]["rms_error_um"][name] = {
+                f"rail {r + 1} {pl}": float(np.sqrt(np.mean(err[r, p] ** 2)) * 1e6)
+                for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))}
+            report["truth"]["rms_error_um"][name]["all"] = float(np.sqrt(np.mean(err**2)) * 1e6)
+            report["truth"]["coverage_2sigma"][name] = float(np.mean(np.abs(err) <= 2 * sig))
+        report["truth"]["rms_truth_um"] = float(np.sqrt(np.mean(truth**2)) * 1e6)
+    return report
 
 
 def _jsonable(obj):
@@ -520,14 +538,14 @@ def _jsonable(obj):
 
 
 def _figures(meas, fits, profiles, s_m, truth):
-    """The two figures on bare ``Figure`` objects (no pyplot: its import and figure management
-    cost ~0.4 s) with fixed margins (``tight_layout`` on the curves' panels cost ~1 s); saved
-    by :func:`_write_dir`."""
+    """The two figures, as jobs for :func:`_write_dir` (drawn on bare ``Figure`` objects with
+    fixed margins: :mod:`diffguide.plotting.fit`)."""
     from ..io.measurements import QUANTITIES
-    from ..plotting.fit import curves_figure, profiles_figure
+    from ..plotting.render import FigureJob
 
     labels = {"": "elastic", "_rigid": "rigid table"}
-    fig1 = profiles_figure(s_m, {labels[k]: v for k, v in profiles.items()}, truth=truth)
+    fig1 = FigureJob("diffguide.plotting.fit:profiles_figure",
+                     (s_m, {labels[k]: v for k, v in profiles.items()}), {"truth": truth})
     chan = meas.channel_index()
     channels = []
     for c, (_, q, _) in enumerate(meas.channels):
@@ -537,7 +555,8 @@ def _figures(meas, fits, profiles, s_m, truth):
         channels.append((meas.channel_label(c), unit,
                          meas.position[sel] * 1e3, meas.value[sel] * 1e6,
                          meas.sigma[sel] * 1e6, fits[""].fitted[sel] * 1e6, rigid))
-    return {"profiles.png": fig1, "curves.png": curves_figure(channels)}
+    return {"profiles.png": fig1,
+            "curves.png": FigureJob("diffguide.plotting.fit:curves_figure", (channels,))}
 
 
 def _error_sigma(machine, fit, x_m, j):

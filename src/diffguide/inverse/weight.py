@@ -71,18 +71,24 @@ class _Spectrum:
         self.b = U[:, keep].T @ y
         self.y_perp2 = max(float(y @ y - self.b @ self.b), 0.0)
 
+    # each a function of λ, vectorised: a scalar gives a scalar, an array of λ an array
+
     def edf(self, lam):
-        return float(np.sum(self.s2 / (self.s2 + lam)))
+        f = self.s2 / (self.s2 + np.asarray(lam, float)[..., None])
+        return np.sum(f, axis=-1)
 
     def residual2(self, lam):
-        f = self.s2 / (self.s2 + lam)
-        return self.y_perp2 + float(np.sum((1 - f) ** 2 * self.b**2))
+        f = self.s2 / (self.s2 + np.asarray(lam, float)[..., None])
+        return self.y_perp2 + np.sum((1 - f) ** 2 * self.b**2, axis=-1)
 
     def score(self, lam, criterion, n_eff):
+        lam = np.asarray(lam, float)
         if criterion == "gcv":
-            return n_eff * self.residual2(lam) / max(n_eff - self.edf(lam), 1e-9) ** 2
-        Q = self.y_perp2 + float(np.sum(lam / (self.s2 + lam) * self.b**2))
-        return n_eff * np.log(max(Q, 1e-300)) + float(np.sum(np.log1p(self.s2 / lam)))
+            return n_eff * self.residual2(lam) / np.maximum(n_eff - self.edf(lam), 1e-9) ** 2
+        Q = self.y_perp2 + np.sum(lam[..., None] / (self.s2 + lam[..., None]) * self.b**2,
+                                  axis=-1)
+        return n_eff * np.log(np.maximum(Q, 1e-300)) + np.sum(
+            np.log1p(self.s2 / lam[..., None]), axis=-1)
 
 
 def project_out(F, *arrays):
@@ -113,18 +119,18 @@ def choose_weight(J, y, Omega, n_eff: int, criterion: str = "ml") -> WeightChoic
         return WeightChoice(1.0, criterion, float("nan"), 0.0, n_eff, True, np.zeros((0, 3)))
     lam0 = float(np.mean(sp.s2))
     grid = lam0 * _GRID
-    scores = np.array([sp.score(g, criterion, n_eff) for g in grid])
+    scores = sp.score(grid, criterion, n_eff)
     k = int(np.nanargmin(scores))
     at_bound = k in (0, len(grid) - 1)
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
     fine = np.geomspace(lo, hi, 21)
-    fs = np.array([sp.score(g, criterion, n_eff) for g in fine])
+    fs = sp.score(fine, criterion, n_eff)
     j = int(np.nanargmin(fs))
     lam = float(fine[j])
     lams = np.concatenate([grid, fine])
     table = np.stack([lams, np.concatenate([scores, fs]),
-                      np.array([sp.edf(g) for g in lams])], axis=1)
-    return WeightChoice(lam, criterion, float(fs[j]), sp.edf(lam), n_eff, at_bound,
+                      sp.edf(lams)], axis=1)
+    return WeightChoice(lam, criterion, float(fs[j]), float(sp.edf(lam)), n_eff, at_bound,
                         table[np.argsort(table[:, 0])])
 
 
@@ -158,5 +164,5 @@ def fixed_weight(lam: float, J, y, Omega, n_eff: int) -> WeightChoice:
     if not (np.isfinite(lam) and lam > 0):
         raise ValueError(f"lambda must be a finite number > 0, got {lam!r}")
     sp = _Spectrum(np.asarray(J, float), np.asarray(y, float), np.asarray(Omega, float))
-    return WeightChoice(float(lam), "fixed", float("nan"), sp.edf(lam), n_eff, False,
+    return WeightChoice(float(lam), "fixed", float("nan"), float(sp.edf(lam)), n_eff, False,
                         np.zeros((0, 3)))

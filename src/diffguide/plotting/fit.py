@@ -102,7 +102,7 @@ def plot_curves(channels, *, title: str = "", ax=None):
         ax.plot(x, fit, "-", color="tab:blue", label="fitted (elastic)")
         if rigid is not None:
             ax.plot(x, np.asarray(rigid)[order], ":", color="tab:red", label="fitted (rigid table)")
-        ax.set_title(label, fontsize=9)
+        ax.set_title(label, fontsize=9, y=1.0)  # a fixed position: no layout pass
         ax.set_ylabel(unit)
         ax.grid(alpha=0.3)
     for a in axes.ravel()[n:]:
