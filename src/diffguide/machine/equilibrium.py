@@ -154,24 +154,29 @@ def _potential(y, args):
 
 
 def _grad_hess(y, args):
-    """Gradient (J/µm) and Hessian (J/µm²) of the potential in the scaled unknowns."""
+    """Gradient (J/µm) and Hessian (J/µm²) of the potential in the scaled unknowns.
+
+    The carriages' tangents ``T_c = Σ_j k_cj G_j G_jᵀ`` are one matrix product of the element
+    stiffnesses with the elements' outer products ``G_j G_jᵀ`` (elements, 36), placed on the
+    block diagonal by a broadcast with the identity; the whole assembly is element-wise (no
+    scatter), which XLA fuses.
+    """
     machine, K, f, Phi, ks, rail = args
     u = _interface(y, Phi)
     a = _contacts(machine, u, rail)
     carriage = machine.carriage
-    G = carriage.jacobian().reshape(-1, 6)  # (elements, 6)
-    F = carriage.element_forces(a).reshape(machine.n_carriages, -1)
-    k = carriage.element_stiffnesses(a).reshape(machine.n_carriages, -1)
-    wrenches = F @ G  # (k, 6): elements on the carriages = carriages on the table
     n = machine.n_carriages
-    nc = 6 * n
+    nc, m = 6 * n, K.shape[0]
+    G = carriage.jacobian().reshape(-1, 6)  # (elements, 6)
+    F = carriage.element_forces(a).reshape(n, -1)
+    k = carriage.element_stiffnesses(a).reshape(n, -1)
+    wrenches = (F @ G).reshape(-1)  # elements on the carriages = carriages on the table
     # the carriages' tangents −d(wrench)/d(pose), (k, 6, 6), as one block-diagonal (6k, 6k)
-    tangents = jnp.einsum("ce,ei,ej,cd->cidj", k, G, G, jnp.eye(n)).reshape(nc, nc)
-    g = K @ u - f
-    g = g.at[:nc].add(-wrenches.reshape(-1))
-    g = g.at[machine.nut_dof].add(ks * u[machine.nut_dof])
-    H = K.at[:nc, :nc].add(tangents)
-    H = H.at[machine.nut_dof, machine.nut_dof].add(ks)
+    T = (k @ (G[:, :, None] * G[:, None, :]).reshape(-1, 36)).reshape(n, 6, 1, 6)
+    tangents = (T * jnp.eye(n)[:, None, :, None]).reshape(nc, nc)
+    e = jnp.zeros(m).at[machine.nut_dof].set(1.0)  # the screw acts on the nut's ux
+    g = K @ u - f - jnp.pad(wrenches, (0, m - nc)) + ks * u[machine.nut_dof] * e
+    H = K + jnp.pad(tangents, (0, m - nc)) + ks * e[:, None] * e
     if Phi is not None:
         g, H = Phi.T @ g, Phi.T @ H @ Phi
     return g * DOF_SCALE, H * DOF_SCALE**2
