@@ -75,7 +75,7 @@ from .._core.aot import cached_program
 from .._core.precision import require_x64
 from ..guideway.rails import SplineRail, bspline_matrix
 from ..machine.equilibrium import Machine
-from ..machine.kinematics import joint_errors
+from ..machine.kinematics import joint_errors_traced
 from .basis import RailBasis, null_space_basis
 from .data import QUANTITIES, Measurements
 from .marginal import marginal_score, maximise_marginal
@@ -136,7 +136,7 @@ def _model(v, prob: _Problem):
     q = v[prob.n_c: prob.n_c + prob.n_q]
     ell = v[prob.n_c + prob.n_q:]
     machine = prob.family.machine(q * prob.prior_sigma)
-    je = joint_errors(machine, _rails(c, prob), prob.positions, prob.x_ref)
+    je = joint_errors_traced(machine, _rails(c, prob), prob.positions, prob.x_ref)
     E = je.errors[prob.pos_idx, prob.pt_idx]  # (N, 6)
     base = jnp.take_along_axis(E, prob.q_idx[:, None], axis=1)[:, 0]
     abbe = jnp.where(prob.q_idx == _EXX, E[:, _EBX], jnp.where(prob.q_idx == _EYX, -E[:, _EAX],
