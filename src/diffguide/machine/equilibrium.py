@@ -139,30 +139,132 @@ def _contacts(machine: Machine, u, rail):
     return jax.vmap(machine.carriage.approaches)(poses, rail)
 
 
-def _interface(y, Phi):
-    """Interface DOF (m, rad) from the generalized unknowns (µm, µrad); ``Phi`` is ``None`` for
-    the elastic table (the unknowns are the interface DOF themselves)."""
-    return (y if Phi is None else Phi @ y) * DOF_SCALE
+# ---- elastic table: Newton on the carriages' 5k contact DOF, the others condensed exactly ----
+
+
+def _dof_split(n_carriages: int) -> tuple[np.ndarray, np.ndarray]:
+    """Static index sets ``(N, L)`` of the interface DOF: ``L``, those on which the potential is
+    quadratic — each carriage's ``tx`` (the elements' load directions have no X component, so no
+    approach depends on it) and the nut's six — and ``N``, the carriages' other five."""
+    lin = [6 * c for c in range(n_carriages)] + list(range(6 * n_carriages, 6 * n_carriages + 6))
+    nonlin = [6 * c + i for c in range(n_carriages) for i in range(1, 6)]
+    return np.array(nonlin), np.array(lin)
+
+
+class _Condensation(eqx.Module):
+    r"""The position-independent part of the exact condensation of the quadratic DOF ``L``.
+
+    With ``A(x) = K_LL + k_s(x) e eᵀ`` (``e``: the nut's ux in ``L``), minimising Π over
+    ``u_L`` gives ``u_L = A⁻¹(f_L − K_LN u_N)`` and the reduced potential
+    ``½u_NᵀS u_N − f_rᵀu_N + Σφ`` with ``S = K_NN − K_NL A⁻¹ K_LN``,
+    ``f_r = f_N − K_NL A⁻¹ f_L``. ``A`` is SPD: the only rigid motion of the free table that
+    vanishes on ``N`` is the X translation, which moves the nut. Its ``x`` dependence is the
+    rank one ``k_s(x)``: with ``A_c = K_LL + c e eᵀ`` (``c = k_s(0)``) and
+    ``β = (k_s − c)/(1 + (k_s − c) eᵀA_c⁻¹e)``, Sherman–Morrison gives
+    ``A⁻¹ = A_c⁻¹ − β A_c⁻¹e eᵀA_c⁻¹``, ``S = S_c + β w wᵀ``, ``f_r = f_c + β h w`` with
+    ``w = K_NL A_c⁻¹ e``, ``h = eᵀA_c⁻¹ f_L``.
+    """
+
+    A_inv: Float[Array, "l l"]
+    K_LN: Float[Array, "l n"]
+    f_L: Float[Array, " l"]
+    S: Float[Array, "n n"]
+    f_r: Float[Array, " n"]
+    w: Float[Array, " n"]
+    h: Float[Array, ""]
+    c: Float[Array, ""]
+    nut: int = eqx.field(static=True)
+
+    @classmethod
+    def of(cls, machine: Machine, K, f) -> "_Condensation":
+        N, L = _dof_split(machine.n_carriages)
+        nut = machine.n_carriages  # the nut's ux in L
+        c = jnp.asarray(machine.screw_stiffness(0.0), dtype=float)
+        A = K[np.ix_(L, L)].at[nut, nut].add(c)
+        A_inv = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(A), jnp.eye(len(L)))
+        K_LN = K[np.ix_(L, N)]
+        A_inv_f = A_inv @ f[L]
+        return cls(
+            A_inv=A_inv,
+            K_LN=K_LN,
+            f_L=f[L],
+            S=K[np.ix_(N, N)] - K_LN.T @ A_inv @ K_LN,
+            f_r=f[N] - K_LN.T @ A_inv_f,
+            w=K_LN.T @ A_inv[:, nut],
+            h=A_inv_f[nut],
+            c=c,
+            nut=nut,
+        )
+
+    def beta(self, ks):
+        return (ks - self.c) / (1.0 + (ks - self.c) * self.A_inv[self.nut, self.nut])
+
+    def reduced(self, ks):
+        """``(S, f_r)`` at screw stiffness ``ks`` (N/m)."""
+        b = self.beta(ks)
+        return self.S + b * self.w[:, None] * self.w, self.f_r + b * self.h * self.w
+
+    def interface(self, u_N, ks):
+        """All interface DOF (m, rad) from the contact DOF ``u_N`` (m, rad):
+        ``u_L = A⁻¹(f_L − K_LN u_N)``."""
+        rhs = self.f_L - self.K_LN @ u_N
+        e_col = self.A_inv[:, self.nut]
+        u_L = self.A_inv @ rhs - self.beta(ks) * e_col * (e_col @ rhs)
+        N, L = _dof_split(self.nut)
+        return jnp.concatenate([u_N, u_L])[np.argsort(np.concatenate([N, L]))]
+
+
+def _poses(machine: Machine, y):
+    """Carriage poses (k, 6) (m, rad) from the scaled contact DOF (µm, µrad): ``tx = 0``."""
+    u = (y * DOF_SCALE).reshape(machine.n_carriages, 5)
+    return jnp.pad(u, ((0, 0), (1, 0)))
 
 
 def _potential(y, args):
+    """Reduced potential (J; a constant dropped) at the scaled contact DOF ``y``."""
+    machine, S, f_r, rail = args
+    u = y * DOF_SCALE
+    a = jax.vmap(machine.carriage.approaches)(_poses(machine, y), rail)
+    return 0.5 * u @ (S @ u) - f_r @ u + machine.carriage.energy(a)
+
+
+def _grad_hess(y, args):
+    """Gradient (J/µm) and Hessian (J/µm²) of :func:`_potential`.
+
+    The carriages' tangents ``T_c = Σ_j k_cj G_j G_jᵀ`` (their 5×5 contact blocks) are one matrix
+    product of the element stiffnesses with the elements' outer products ``G_j G_jᵀ``, placed on
+    the block diagonal by a broadcast with the identity: the assembly is element-wise (no
+    scatter), which XLA fuses.
+    """
+    machine, S, f_r, rail = args
+    u = y * DOF_SCALE
+    carriage = machine.carriage
+    n = machine.n_carriages
+    a = jax.vmap(carriage.approaches)(_poses(machine, y), rail)
+    G = carriage.jacobian().reshape(-1, 6)[:, 1:]  # (elements, 5); the tx column is zero
+    F = carriage.element_forces(a).reshape(n, -1)
+    k = carriage.element_stiffnesses(a).reshape(n, -1)
+    wrenches = (F @ G).reshape(-1)  # elements on the carriages = carriages on the table
+    T = (k @ (G[:, :, None] * G[:, None, :]).reshape(-1, 25)).reshape(n, 5, 1, 5)
+    H = S + (T * jnp.eye(n)[:, None, :, None]).reshape(5 * n, 5 * n)
+    return (S @ u - f_r - wrenches) * DOF_SCALE, H * DOF_SCALE**2
+
+
+# ---- rigid table: Newton on the table's six rigid-body DOF ----
+
+
+def _rigid_potential(y, args):
     machine, K, f, Phi, ks, rail = args
-    u = _interface(y, Phi)
+    u = Phi @ y * DOF_SCALE
     a = _contacts(machine, u, rail)
     nut = u[machine.nut_dof]
     return 0.5 * u @ (K @ u) - f @ u + machine.carriage.energy(a) + 0.5 * ks * nut**2
 
 
-def _grad_hess(y, args):
-    """Gradient (J/µm) and Hessian (J/µm²) of the potential in the scaled unknowns.
-
-    The carriages' tangents ``T_c = Σ_j k_cj G_j G_jᵀ`` are one matrix product of the element
-    stiffnesses with the elements' outer products ``G_j G_jᵀ`` (elements, 36), placed on the
-    block diagonal by a broadcast with the identity; the whole assembly is element-wise (no
-    scatter), which XLA fuses.
-    """
+def _rigid_grad_hess(y, args):
+    """Gradient (J/µrad..) and Hessian of :func:`_rigid_potential` in the scaled unknowns."""
     machine, K, f, Phi, ks, rail = args
-    u = _interface(y, Phi)
+    u = Phi @ y * DOF_SCALE
     a = _contacts(machine, u, rail)
     carriage = machine.carriage
     n = machine.n_carriages
@@ -170,16 +272,13 @@ def _grad_hess(y, args):
     G = carriage.jacobian().reshape(-1, 6)  # (elements, 6)
     F = carriage.element_forces(a).reshape(n, -1)
     k = carriage.element_stiffnesses(a).reshape(n, -1)
-    wrenches = (F @ G).reshape(-1)  # elements on the carriages = carriages on the table
-    # the carriages' tangents −d(wrench)/d(pose), (k, 6, 6), as one block-diagonal (6k, 6k)
+    wrenches = (F @ G).reshape(-1)
     T = (k @ (G[:, :, None] * G[:, None, :]).reshape(-1, 36)).reshape(n, 6, 1, 6)
     tangents = (T * jnp.eye(n)[:, None, :, None]).reshape(nc, nc)
     e = jnp.zeros(m).at[machine.nut_dof].set(1.0)  # the screw acts on the nut's ux
     g = K @ u - f - jnp.pad(wrenches, (0, m - nc)) + ks * u[machine.nut_dof] * e
     H = K + jnp.pad(tangents, (0, m - nc)) + ks * e[:, None] * e
-    if Phi is not None:
-        g, H = Phi.T @ g, Phi.T @ H @ Phi
-    return g * DOF_SCALE, H * DOF_SCALE**2
+    return Phi.T @ g * DOF_SCALE, Phi.T @ H @ Phi * DOF_SCALE**2
 
 
 class MachineState(eqx.Module):
@@ -204,13 +303,22 @@ class MachineState(eqx.Module):
         return self.result == optx.RESULTS.successful
 
 
-def _solve_one(machine: Machine, x, rails, Phi, K, f, y0, tol, max_steps):
+def _solve_one(machine: Machine, x, rails, Phi, K, f, cond, y0, tol, max_steps):
     rail = machine.rail_under_carriages(x, rails)
-    args = (machine, K, f, Phi, machine.screw_stiffness(x), rail)
-    y, result, steps = solve_equilibrium(
-        _potential, _grad_hess, y0, args, tol=tol, max_steps=max_steps
-    )
-    u = _interface(y, Phi)
+    ks = machine.screw_stiffness(x)
+    if Phi is None:
+        S, f_r = cond.reduced(ks)
+        N, _ = _dof_split(machine.n_carriages)
+        y, result, steps = solve_equilibrium(
+            _potential, _grad_hess, y0[N], (machine, S, f_r, rail), tol=tol, max_steps=max_steps
+        )
+        u = cond.interface(y * DOF_SCALE, ks)
+    else:
+        args = (machine, K, f, Phi, ks, rail)
+        y, result, steps = solve_equilibrium(
+            _rigid_potential, _rigid_grad_hess, y0, args, tol=tol, max_steps=max_steps
+        )
+        u = Phi @ y * DOF_SCALE
     forces = machine.carriage.element_forces(_contacts(machine, u, rail))
     return u, forces, result, steps
 
@@ -258,8 +366,10 @@ def equilibrium(
     if initial.shape != (positions.shape[0], d):
         raise ValueError(f"initial must have shape (n_pos, {d}), got {initial.shape}")
 
+    cond = None if machine.rigid else _Condensation.of(machine, K, f)
+
     def one(x, y0):
-        return _solve_one(machine, x, rails, Phi, K, f, y0, tol, max_steps)
+        return _solve_one(machine, x, rails, Phi, K, f, cond, y0, tol, max_steps)
 
     u, forces, result, steps = jax.vmap(one)(positions, initial)
     if throw:
