@@ -142,3 +142,18 @@ def test_the_command_passes_its_exit_status_and_messages_through_its_quick_exit(
     assert out.returncode == 2, out.stderr
     assert "none.csv" in out.stderr and "error" in out.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_xla_cpu_flags_only_for_measured_jaxlib_and_never_over_the_users(monkeypatch):
+    from importlib.metadata import version
+
+    from diffguide.cli import _common
+
+    monkeypatch.setattr(_common, "XLA_CPU_FLAGS", {version("jaxlib"): ("--a=1", "--b=2")})
+    monkeypatch.setenv("XLA_FLAGS", "--b=7 --c")
+    _common._set_xla_cpu_flags()
+    assert os.environ["XLA_FLAGS"].split() == ["--b=7", "--c", "--a=1"]
+    monkeypatch.setattr(_common, "XLA_CPU_FLAGS", {"0.0.0": ("--a=1",)})  # another version
+    monkeypatch.delenv("XLA_FLAGS")
+    _common._set_xla_cpu_flags()
+    assert "XLA_FLAGS" not in os.environ
