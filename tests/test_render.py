@@ -63,3 +63,22 @@ def test_without_a_process_the_jobs_are_drawn_here(tmp_path):
 def test_a_job_names_a_plotting_function():
     with pytest.raises(ValueError, match="diffguide.plotting"):
         FigureJob("os:system", ("true",))
+
+
+def test_a_dead_worker_leaves_its_jobs_to_be_drawn_here(tmp_path):
+    worker = FigureWorker().start()
+    worker._proc.kill()  # dies before (or while) it draws
+    worker._proc.wait()
+    worker.submit(tmp_path, _jobs(), dpi=40)
+    worker.wait()
+    worker.close()
+    assert (tmp_path / "curves.png").exists() and (tmp_path / "profiles.png").exists()
+
+
+def test_a_worker_that_dies_after_the_jobs_were_sent_still_gives_the_files(tmp_path):
+    worker = FigureWorker().start()
+    worker.submit(tmp_path, _jobs(), dpi=40)
+    worker._proc.kill()  # most likely still importing matplotlib
+    worker.wait()
+    worker.close()
+    assert (tmp_path / "curves.png").exists() and (tmp_path / "profiles.png").exists()

@@ -60,13 +60,13 @@ def save_jobs(folder: Path, jobs: list[tuple[str, FigureJob]], dpi: int) -> None
 class FigureWorker:
     """A process that draws figures (module docstring); a context manager that stops it.
 
-    ``FigureWorker()`` starts nothing; :meth:`start` starts the process (a failure to start
-    leaves it off: the jobs are then drawn here).
+    ``FigureWorker()`` starts nothing; :meth:`start` starts the process. Where it fails to start
+    or dies, the jobs are drawn here: the files are written either way.
     """
 
     def __init__(self):
         self._proc: subprocess.Popen | None = None
-        self._pending: list[tuple[Path, list, int]] = []
+        self._pending: list[tuple[Path, list, int, bool]] = []
 
     def start(self) -> FigureWorker:
         try:
@@ -85,33 +85,35 @@ class FigureWorker:
         return self._proc is not None and self._proc.poll() is None
 
     def submit(self, folder: Path, jobs: list[tuple[str, FigureJob]], dpi: int = 110) -> None:
-        """Send ``jobs`` to the worker (returns at once), or keep them to draw here in
-        :meth:`wait` where no worker runs."""
+        """Send ``jobs`` to the worker (returns at once); where no worker runs they are drawn
+        here in :meth:`wait`."""
+        sent = False
         if self.running:
             try:
                 pickle.dump((str(folder), jobs, dpi), self._proc.stdin)
                 self._proc.stdin.flush()
-                self._pending.append((Path(folder), None, dpi))
-                return
+                sent = True
             except (OSError, pickle.PicklingError):
                 self.close()
-        self._pending.append((Path(folder), jobs, dpi))
+        self._pending.append((Path(folder), jobs, dpi, sent))
 
     def wait(self) -> None:
-        """Return when every submitted figure is saved; raise ``RuntimeError`` with the
-        worker's traceback if a figure failed."""
+        """Return when every submitted figure is saved. A figure that fails raises
+        ``RuntimeError`` with the worker's traceback; a worker that died (or never started)
+        leaves its jobs to be drawn here."""
         pending, self._pending = self._pending, []
-        for folder, jobs, dpi in pending:
-            if jobs is not None:  # no worker: draw here
-                save_jobs(folder, jobs, dpi)
-                continue
-            try:
-                answer = pickle.load(self._proc.stdout)
-            except (EOFError, OSError, pickle.UnpicklingError):
-                answer = "the figure process died"
-            if answer is not None:
-                self.close()
-                raise RuntimeError(f"drawing the figures failed:\n{answer}")
+        for folder, jobs, dpi, sent in pending:
+            if sent and self._proc is not None:
+                try:
+                    answer = pickle.load(self._proc.stdout)
+                except (EOFError, OSError, pickle.UnpicklingError):  # died: draw them here
+                    self.close()
+                else:
+                    if answer is None:
+                        continue
+                    self.close()
+                    raise RuntimeError(f"drawing the figures failed:\n{answer}")
+            save_jobs(folder, jobs, dpi)
 
     def close(self) -> None:
         """Stop the worker (it exits when its input closes)."""
