@@ -24,6 +24,10 @@ _HALVINGS = 40
 #: Predicted decrease of Π, relative to |Π|, below which the Newton step is taken without the
 #: line search (the Armijo test cannot tell such a change from round-off).
 _SETTLED = 1e-8
+#: The loop also stops when the next step, extrapolated from the last two full Newton steps as
+#: ``s_k (s_k/s_{k-1})²`` (the quadratic rate), is below this fraction of ``tol``: the step that
+#: would only confirm convergence (at round-off size) is not taken.
+_PREDICTED = 1e-3
 
 
 def _newton_loop(inputs):
@@ -31,7 +35,7 @@ def _newton_loop(inputs):
     potential, grad_hess, y0, args, max_steps, tol = inputs
 
     def body(state):
-        y, _, k, p0 = state
+        y, size, _, _, k, p0 = state
         g, H = grad_hess(y, args)
         d = -jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(H), g)  # H is SPD
         # a singular tangent (everything lifted off) falls back to a gradient step
@@ -47,8 +51,9 @@ def _newton_loop(inputs):
 
         def too_high(ts):
             t, p = ts
-            return jnp.where(t > 1.0, ~settled,
-                             (p > p0 + _ARMIJO * t * slope + slack) & (t > 2.0**-_HALVINGS))
+            return jnp.where(
+                t > 1.0, ~settled, (p > p0 + _ARMIJO * t * slope + slack) & (t > 2.0**-_HALVINGS)
+            )
 
         def shrink(ts):
             t, _ = ts
@@ -59,17 +64,25 @@ def _newton_loop(inputs):
         start = (jnp.full((), 2.0, y.dtype), jnp.full((), jnp.inf, y.dtype))
         t, p = jax.lax.while_loop(too_high, shrink, start)
         p = jnp.where(settled, p0 + 0.5 * slope, p)  # Π to second order (Hd = −g)
+        newton = finite & (t >= 1.0)
         t = jnp.minimum(t, 1.0)
         step = t * d
-        return y + step, jnp.max(jnp.abs(step)), k + 1, p
+        new_size = jnp.max(jnp.abs(step))
+        # the convergence rate s_k/s_{k-1}, where both steps were full Newton steps
+        rate = jnp.where(newton & state[3], new_size / size, jnp.inf)
+        return y + step, new_size, rate, newton, k + 1, p
+
+    def done(size, rate):
+        return (size <= tol) | (size * rate**2 <= _PREDICTED * tol)
 
     def cond(state):
-        _, size, k, _ = state
-        return (size > tol) & (k < max_steps)  # a NaN step ends the loop too
+        _, size, rate, _, k, _ = state
+        return ~done(size, rate) & (k < max_steps) & ~jnp.isnan(size)  # NaN ends the loop
 
-    init = (y0, jnp.asarray(jnp.inf, y0.dtype), jnp.asarray(0), potential(y0, args))
-    y, size, k, _ = jax.lax.while_loop(cond, body, init)
-    return y, (size <= tol, k)
+    inf = jnp.asarray(jnp.inf, y0.dtype)
+    init = (y0, inf, inf, jnp.asarray(False), jnp.asarray(0), potential(y0, args))
+    y, size, rate, _, k, _ = jax.lax.while_loop(cond, body, init)
+    return y, (done(size, rate), k)
 
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2, 3))
@@ -117,7 +130,10 @@ def solve_equilibrium(
         grad_hess: ``(y, args) -> (∂Π/∂y, ∂²Π/∂y²)`` (closed forms compile far faster than
             ``jax.hessian``); must be global functions or ``functools.partial`` of them.
         y0: starting point. args: everything the potential depends on (a pytree).
-        tol: stop when the largest Newton step component is below ``tol`` (units of ``y``).
+        tol: stop when the largest Newton step component is below ``tol`` (units of ``y``),
+            or when the next one, extrapolated from the last two full Newton steps with the
+            quadratic rate, ``s_k (s_k/s_{k−1})²``, is below ``10⁻³ tol`` (it would be a
+            round-off-sized confirmation).
         max_steps: Newton step limit.
         throw: raise (``eqx.error_if``, also under ``jit``) when the solve fails, instead of
             reporting it in ``result`` only. Under ``vmap`` one failure fails the whole batch,
