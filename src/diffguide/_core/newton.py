@@ -95,22 +95,43 @@ def _implicit_solve(potential, grad_hess, max_steps, tol, y0, args):
     return y, converged, steps
 
 
+def _implicit_tangent(grad_hess, y, args, args_dot):
+    """``ẏ = −H⁻¹ (∂g/∂args)·ȧrgs`` at the root ``y`` of ``g``."""
+    y = jax.lax.stop_gradient(y)
+    # H and ∂g/∂args·ȧrgs from one trace of grad_hess (the unused Ḣ is dropped by the compiler)
+    (_, H), (g_dot, _) = jax.jvp(lambda a: grad_hess(y, a), (args,), (args_dot,))
+    H = jax.lax.stop_gradient(H)
+    return -jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(H), g_dot)
+
+
 @_implicit_solve.defjvp
 def _implicit_solve_jvp(potential, grad_hess, max_steps, tol, primals, tangents):
     y0, args = primals
     _, args_dot = tangents
     y, converged, steps = _implicit_solve(potential, grad_hess, max_steps, tol, y0, args)
-    y = jax.lax.stop_gradient(y)
-    # H and ∂g/∂args·ȧrgs from one trace of grad_hess (the unused Ḣ is dropped by the compiler)
-    (_, H), (g_dot, _) = jax.jvp(lambda a: grad_hess(y, a), (args,), (args_dot,))
-    H = jax.lax.stop_gradient(H)
-    y_dot = -jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(H), g_dot)
+    y_dot = _implicit_tangent(grad_hess, y, args, args_dot)
     zero = np.zeros((), dtype=jax.dtypes.float0)
     return (y, converged, steps), (
         y_dot,
         np.broadcast_to(zero, jnp.shape(converged)),
         np.broadcast_to(zero, jnp.shape(steps)),
     )
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0,))
+def implicit_root(grad_hess: Callable, y: jax.Array, args) -> jax.Array:
+    """``y`` itself — a minimiser of a convex potential found by other means (a reduced
+    problem, say) — with the derivative of the implicit function theorem w.r.t. ``args``:
+    ``ẏ = −H⁻¹ (∂g/∂args)·ȧrgs``, ``(g, H) = grad_hess(y, args)`` (as in
+    :func:`solve_equilibrium`); ``y``'s own tangent is ignored."""
+    return y
+
+
+@implicit_root.defjvp
+def _implicit_root_jvp(grad_hess, primals, tangents):
+    y, args = primals
+    _, args_dot = tangents
+    return y, _implicit_tangent(grad_hess, y, args, args_dot)
 
 
 def solve_equilibrium(

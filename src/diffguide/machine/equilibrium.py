@@ -12,8 +12,11 @@ total potential is convex:
 with ``a_kj`` the element approaches of carriage ``k`` over the rail at ``s = x + X_k + ξ_j``
 (:meth:`~diffguide.guideway.Carriage.approaches`), ``k_s(x) = E A / (L₀ + x)`` the axial stiffness
 of the screw between its fixed bearing and the nut. Its stationary point is found with Newton and
-an Armijo line search, differentiated implicitly by optimistix (:mod:`diffguide._core.newton`), for
-all positions in one vmapped call.
+an Armijo line search (:mod:`diffguide._core.newton`), for all positions in one vmapped call. Π is
+quadratic in each carriage's ``tx`` (no element load has an X component) and in the nut's six DOF:
+those are condensed exactly (:class:`_Condensation`), and Newton runs on the carriages' other
+``5k`` DOF. The solution is differentiated by the implicit function theorem on the full ``Π``
+(its exact Hessian at the solution; :func:`~diffguide._core.newton.implicit_root`).
 
 Rigid-table mode: the same machine with an infinitely stiff table, i.e. the interface DOF
 restricted to the six rigid-body motions of the table, ``u = Φ q`` (``Φ`` maps the table's
@@ -29,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .._core.newton import solve_equilibrium
+from .._core.newton import implicit_root, solve_equilibrium
 from .._core.precision import require_x64
 from .._core.rigid import rigid_transfer
 from .._core.types import Array, Float, Int
@@ -164,11 +167,13 @@ class _Condensation(eqx.Module):
     ``A⁻¹ = A_c⁻¹ − β A_c⁻¹e eᵀA_c⁻¹``, ``S = S_c + β w wᵀ``, ``f_r = f_c + β h w`` with
     ``w = K_NL A_c⁻¹ e``, ``h = eᵀA_c⁻¹ f_L``.
 
-    ``P`` (µm²/J) is the inverse of the reduced Hessian at zero on straight rails (every element
-    at preload) with ``k_s(0)``: Newton's default start is ``y₀ = −P g(0)``, one step from zero
-    with this position-independent tangent, which costs a matrix-vector product where the
-    exact first step costs a factorisation per position (and lands as close: one Newton step
-    fewer).
+    Newton's default start is one step from zero of the problem with linear springs at preload
+    (stiffnesses ``k⁰``, forces ``F⁰`` at the approaches on straight rails, ``a⁰``), i.e. the
+    solution of that linear problem: ``y₀ = −P g̃``, ``P`` (µm²/J) the inverse of the reduced
+    Hessian at zero on straight rails with ``k_s(0)``, ``g̃ = −f_r − Σ_j (F⁰_j + k⁰_j Δa_j) G_j``
+    with ``Δa`` the approaches' change by the rail deviation. It costs a matrix-vector product
+    per position where the exact first Newton step costs a factorisation (and lands as close:
+    one Newton step fewer).
     """
 
     A_inv: Float[Array, "l l"]
@@ -180,6 +185,9 @@ class _Condensation(eqx.Module):
     h: Float[Array, ""]
     c: Float[Array, ""]
     P: Float[Array, "n n"]
+    a0: Float[Array, "rows m"]
+    k0: Float[Array, " e"]
+    w0: Float[Array, " 5"]
     nut: int = eqx.field(static=True)
 
     @classmethod
@@ -194,10 +202,12 @@ class _Condensation(eqx.Module):
         S = K[np.ix_(N, N)] - K_LN.T @ A_inv @ K_LN
         carriage = machine.carriage
         n = machine.n_carriages
-        a = carriage.approaches(jnp.zeros(6), jnp.zeros((carriage.n_elements, 2)))
+        a0 = carriage.approaches(jnp.zeros(6), jnp.zeros((carriage.n_elements, 2)))
+        k0 = carriage.element_stiffnesses(a0).reshape(-1)
         G = carriage.jacobian().reshape(-1, 6)[:, 1:]
-        T = jnp.einsum("e,ei,ej->ij", carriage.element_stiffnesses(a).reshape(-1), G, G)
-        H0 = S + jnp.kron(jnp.eye(n), T)
+        T = (k0 * G.T) @ G
+        blocks = (T[None, :, None, :] * jnp.eye(n)[:, None, :, None]).reshape(5 * n, 5 * n)
+        H0 = S + blocks
         P = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(H0), jnp.eye(5 * n))
         return cls(
             A_inv=A_inv,
@@ -209,11 +219,23 @@ class _Condensation(eqx.Module):
             h=A_inv_f[nut],
             c=c,
             P=P * (1.0 / DOF_SCALE**2),
+            a0=a0,
+            k0=k0,
+            w0=carriage.element_forces(a0).reshape(-1) @ G,
             nut=nut,
         )
 
     def beta(self, ks):
         return (ks - self.c) / (1.0 + (ks - self.c) * self.A_inv[self.nut, self.nut])
+
+    def start(self, machine: Machine, f_r, rail):
+        """Newton's default start (µm, µrad), see the class docstring."""
+        carriage = machine.carriage
+        n = machine.n_carriages
+        da = jax.vmap(carriage.approaches)(jnp.zeros((n, 6)), rail) - self.a0
+        G = carriage.jacobian().reshape(-1, 6)[:, 1:]
+        wrenches = self.w0 + (da.reshape(n, -1) * self.k0) @ G
+        return self.P @ (f_r + wrenches.reshape(-1)) * DOF_SCALE
 
     def reduced(self, ks):
         """``(S, f_r)`` at screw stiffness ``ks`` (N/m)."""
@@ -259,28 +281,36 @@ def _grad_hess(y, args):
     a = jax.vmap(carriage.approaches)(_poses(machine, y), rail)
     G = carriage.jacobian().reshape(-1, 6)[:, 1:]  # (elements, 5); the tx column is zero
     F = carriage.element_forces(a).reshape(n, -1)
-    k = carriage.element_stiffnesses(a).reshape(n, -1)
     wrenches = (F @ G).reshape(-1)  # elements on the carriages = carriages on the table
+    g = (S @ u - f_r - wrenches) * DOF_SCALE
+    k = carriage.element_stiffnesses(a).reshape(n, -1)
     T = (k @ (G[:, :, None] * G[:, None, :]).reshape(-1, 25)).reshape(n, 5, 1, 5)
     H = S + (T * jnp.eye(n)[:, None, :, None]).reshape(5 * n, 5 * n)
-    return (S @ u - f_r - wrenches) * DOF_SCALE, H * DOF_SCALE**2
+    return g, H * DOF_SCALE**2
 
 
-# ---- rigid table: Newton on the table's six rigid-body DOF ----
+# ---- all interface DOF (or the rigid table's six): the rigid table's Newton, and the elastic
+# table's implicit derivative ----
 
 
-def _rigid_potential(y, args):
+def _interface(y, Phi):
+    """Interface DOF (m, rad) from the generalized unknowns (µm, µrad); ``Phi`` is ``None`` for
+    the elastic table (the unknowns are the interface DOF themselves)."""
+    return (y if Phi is None else Phi @ y) * DOF_SCALE
+
+
+def _full_potential(y, args):
     machine, K, f, Phi, ks, rail = args
-    u = Phi @ y * DOF_SCALE
+    u = _interface(y, Phi)
     a = _contacts(machine, u, rail)
     nut = u[machine.nut_dof]
     return 0.5 * u @ (K @ u) - f @ u + machine.carriage.energy(a) + 0.5 * ks * nut**2
 
 
-def _rigid_grad_hess(y, args):
-    """Gradient (J/µrad..) and Hessian of :func:`_rigid_potential` in the scaled unknowns."""
+def _full_grad_hess(y, args):
+    """Gradient (J/µm) and Hessian (J/µm²) of :func:`_full_potential` in the scaled unknowns."""
     machine, K, f, Phi, ks, rail = args
-    u = Phi @ y * DOF_SCALE
+    u = _interface(y, Phi)
     a = _contacts(machine, u, rail)
     carriage = machine.carriage
     n = machine.n_carriages
@@ -294,7 +324,9 @@ def _rigid_grad_hess(y, args):
     e = jnp.zeros(m).at[machine.nut_dof].set(1.0)  # the screw acts on the nut's ux
     g = K @ u - f - jnp.pad(wrenches, (0, m - nc)) + ks * u[machine.nut_dof] * e
     H = K + jnp.pad(tangents, (0, m - nc)) + ks * e[:, None] * e
-    return Phi.T @ g * DOF_SCALE, Phi.T @ H @ Phi * DOF_SCALE**2
+    if Phi is not None:
+        g, H = Phi.T @ g, Phi.T @ H @ Phi
+    return g * DOF_SCALE, H * DOF_SCALE**2
 
 
 class MachineState(eqx.Module):
@@ -319,28 +351,39 @@ class MachineState(eqx.Module):
         return self.result == optx.RESULTS.successful
 
 
+def _no_grad(tree):
+    """``tree`` with ``stop_gradient`` on its arrays (other leaves as they are)."""
+    return jax.tree_util.tree_map(
+        lambda v: jax.lax.stop_gradient(v) if eqx.is_array(v) else v, tree
+    )
+
+
 def _solve_one(machine: Machine, x, rails, Phi, K, f, cond, y0, tol, max_steps):
     rail = machine.rail_under_carriages(x, rails)
     ks = machine.screw_stiffness(x)
+    full = (machine, K, f, Phi, ks, rail)
     if Phi is None:
-        S, f_r = cond.reduced(ks)
+        # Newton on the contact DOF, not differentiated; the derivatives of all 30 DOF are the
+        # implicit function theorem's on the full potential (its exact Hessian at the solution)
+        sg = _no_grad
+        S, f_r = cond.reduced(sg(ks))
         N, _ = _dof_split(machine.n_carriages)
-        args = (machine, S, f_r, rail)
-        if y0 is None:  # one step from zero with the tangent at preload on straight rails
-            y0 = jax.lax.stop_gradient(-cond.P @ _grad_hess(jnp.zeros(len(N)), args)[0])
+        args = (sg(machine), S, f_r, sg(rail))
+        if y0 is None:  # the solution with linear springs at preload (_Condensation)
+            y0 = cond.start(args[0], f_r, args[3])
             y0 = jnp.where(jnp.all(jnp.isfinite(y0)), y0, 0.0)  # (a singular tangent)
         else:
             y0 = y0[N]
         y, result, steps = solve_equilibrium(
-            _potential, _grad_hess, y0, args, tol=tol, max_steps=max_steps
+            _potential, _grad_hess, sg(y0), args, tol=tol, max_steps=max_steps
         )
-        u = cond.interface(y * DOF_SCALE, ks)
+        y = cond.interface(y * DOF_SCALE, sg(ks)) / DOF_SCALE
+        y = implicit_root(_full_grad_hess, y, full)
     else:
-        args = (machine, K, f, Phi, ks, rail)
         y, result, steps = solve_equilibrium(
-            _rigid_potential, _rigid_grad_hess, y0, args, tol=tol, max_steps=max_steps
+            _full_potential, _full_grad_hess, y0, full, tol=tol, max_steps=max_steps
         )
-        u = Phi @ y * DOF_SCALE
+    u = _interface(y, Phi)
     forces = machine.carriage.element_forces(_contacts(machine, u, rail))
     return u, forces, result, steps
 
@@ -364,7 +407,7 @@ def equilibrium(
         positions: table positions ``x`` (m).
         initial: Newton's starting point per position, in the generalized DOF (µm, µrad;
             ``(n_pos, 30)`` elastic, ``(n_pos, 6)`` rigid); default zero (rigid) or, elastic,
-            one step from zero with the tangent at preload on straight rails.
+            the solution with linear springs at preload (one Newton step fewer).
         tol: stop when the largest Newton step is below ``tol`` µm / µrad.
         max_steps: Newton step limit.
         throw: raise (``eqx.error_if``, also under ``jit``) when any position fails, instead
@@ -390,7 +433,8 @@ def equilibrium(
     if initial.shape != (positions.shape[0], d):
         raise ValueError(f"initial must have shape (n_pos, {d}), got {initial.shape}")
 
-    cond = None if machine.rigid else _Condensation.of(machine, K, f)
+    # (not differentiated: see _solve_one)
+    cond = None if machine.rigid else _Condensation.of(_no_grad(machine), _no_grad(K), _no_grad(f))
 
     def one(x, y0):
         return _solve_one(
