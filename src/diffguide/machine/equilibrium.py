@@ -362,7 +362,7 @@ def _solve_one(machine: Machine, x, rails, Phi, K, f, cond, y0, tol, max_steps):
     rail = machine.rail_under_carriages(x, rails)
     ks = machine.screw_stiffness(x)
     full = (machine, K, f, Phi, ks, rail)
-    if Phi is None:
+    if cond is not None:
         # Newton on the contact DOF, not differentiated; the derivatives of all 30 DOF are the
         # implicit function theorem's on the full potential (its exact Hessian at the solution)
         sg = _no_grad
@@ -398,6 +398,7 @@ def equilibrium(
     tol: float = 1e-9,
     max_steps: int = 60,
     throw: bool = False,
+    condensed: bool = True,
 ) -> MachineState:
     """Equilibrium of the machine at every table position, in one compiled, vmapped call.
 
@@ -412,6 +413,11 @@ def equilibrium(
         max_steps: Newton step limit.
         throw: raise (``eqx.error_if``, also under ``jit``) when any position fails, instead
             of only flagging it in ``result``.
+        condensed: elastic table: Newton on the carriages' contact DOF with the others
+            condensed (see the module docstring; about half the run time of a sweep, but a
+            larger program: about 0.7 s more to compile a sweep, 1.4 s a fit's linearisation);
+            ``False``: Newton on all 30 interface DOF from zero. The same solution and
+            derivatives either way.
 
     Returns:
         :class:`MachineState`; positions that did not converge are flagged in ``result``
@@ -427,14 +433,16 @@ def equilibrium(
     K = machine.table.K
     f = machine.table.f
 
-    predict = initial is None and Phi is None
+    # (not differentiated: see _solve_one)
+    if machine.rigid or not condensed:
+        cond = None
+    else:
+        cond = _Condensation.of(_no_grad(machine), _no_grad(K), _no_grad(f))
+    predict = initial is None and cond is not None
     if initial is None:
         initial = jnp.zeros((positions.shape[0], d))
     if initial.shape != (positions.shape[0], d):
         raise ValueError(f"initial must have shape (n_pos, {d}), got {initial.shape}")
-
-    # (not differentiated: see _solve_one)
-    cond = None if machine.rigid else _Condensation.of(_no_grad(machine), _no_grad(K), _no_grad(f))
 
     def one(x, y0):
         return _solve_one(
