@@ -75,6 +75,7 @@ class FigureWorker:
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.DEVNULL,
+                env={**os.environ, "MPLBACKEND": "Agg"},  # the child's own setting: files only
             )
         except OSError:
             self._proc = None
@@ -139,9 +140,6 @@ class FigureWorker:
 
 def _serve(stdin, stdout) -> None:
     """The worker's loop: import matplotlib's machinery at once, then draw what arrives."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.backends.backend_agg  # noqa: F401
     import matplotlib.figure  # noqa: F401
 
