@@ -136,7 +136,11 @@ def _model(v, prob: _Problem):
     q = v[prob.n_c: prob.n_c + prob.n_q]
     ell = v[prob.n_c + prob.n_q:]
     machine = prob.family.machine(q * prob.prior_sigma)
-    je = joint_errors_traced(machine, _rails(c, prob), prob.positions, prob.x_ref)
+    # Newton on all 30 DOF: the smaller program (this one is traced, differentiated and
+    # compiled for a few calls, where the condensed solve's run time does not pay its compile)
+    je = joint_errors_traced(
+        machine, _rails(c, prob), prob.positions, prob.x_ref, condensed=False
+    )
     E = je.errors[prob.pos_idx, prob.pt_idx]  # (N, 6)
     base = jnp.take_along_axis(E, prob.q_idx[:, None], axis=1)[:, 0]
     abbe = jnp.where(prob.q_idx == _EXX, E[:, _EBX], jnp.where(prob.q_idx == _EYX, -E[:, _EAX],

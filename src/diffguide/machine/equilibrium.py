@@ -388,8 +388,7 @@ def _solve_one(machine: Machine, x, rails, Phi, K, f, cond, y0, tol, max_steps):
     return u, forces, result, steps
 
 
-@eqx.filter_jit
-def equilibrium(
+def equilibrium_traced(
     machine: Machine,
     rails: tuple[AbstractRailProfile, AbstractRailProfile],
     positions: Float[Array, " n_pos"],
@@ -453,6 +452,12 @@ def equilibrium(
     if throw:
         u = _error_if_failed(u, result, "equilibrium")
     return MachineState(positions, u, forces, result, steps)
+
+
+#: :func:`equilibrium_traced`, compiled (the function to call). Inside another traced function
+#: call ``equilibrium_traced`` itself: a nested ``jit`` is traced again by every transformation
+#: around it (``jvp``, ``vmap``).
+equilibrium = eqx.filter_jit(equilibrium_traced)
 
 
 def _error_if_failed(x, result, what: str):

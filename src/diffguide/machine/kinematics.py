@@ -20,7 +20,7 @@ import optimistix as optx
 from .._core.rigid import transfer
 from .._core.types import Array, Float
 from ..guideway.rails import AbstractRailProfile
-from .equilibrium import Machine, _error_if_failed, equilibrium, point_motion
+from .equilibrium import Machine, _error_if_failed, equilibrium_traced, point_motion
 
 #: ISO 230-1 names of the six joint errors of the X axis, in the order of the last axis of
 #: :attr:`JointErrors.errors` (SI: m for the first three, rad for the last three; user units in
@@ -107,6 +107,7 @@ def joint_errors_traced(
     x_ref: float | Float[Array, ""] = 0.0,
     *,
     throw: bool = False,
+    condensed: bool = True,
 ) -> JointErrors:
     """Equilibrium at every position and at ``x_ref`` (one vmapped solve), then the errors.
 
@@ -116,10 +117,15 @@ def joint_errors_traced(
         positions: table positions (m). x_ref: reference position (m).
         throw: raise (``eqx.error_if``) when any position (or the reference) fails, instead of
             only reporting it in ``result``.
+        condensed: the equilibrium's Newton solve on the contact DOF (``True``: the faster
+            run) or on all 30 interface DOF (``False``: the smaller program, for a traced
+            function compiled to run a few times); the same result (:func:`equilibrium`).
     """
     positions = jnp.atleast_1d(jnp.asarray(positions, dtype=float))
     x_ref = jnp.asarray(x_ref, dtype=float)
-    state = equilibrium(machine, rails, jnp.concatenate([positions, x_ref[None]]))
+    state = equilibrium_traced(
+        machine, rails, jnp.concatenate([positions, x_ref[None]]), condensed=condensed
+    )
     motion = point_motion(machine, state.interface)
     errors = motion[:-1] - motion[-1]
     # a failed reference position invalidates every error: report its code everywhere
