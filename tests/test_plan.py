@@ -284,6 +284,8 @@ def test_cli_writes_the_plan_and_refuses_bad_input(tmp_path, capsys):
             "fixed",
             "--draws",
             "1",
+            "--mesh",
+            "8x4",
             "--out",
             str(out),
             "--quiet",
@@ -298,6 +300,7 @@ def test_cli_writes_the_plan_and_refuses_bad_input(tmp_path, capsys):
     ]
     report = json.loads((out / "report.json").read_text())
     assert report["compare"]["worst_profile_sigma_um"] > 0
+    assert report["mesh"] == "8x4"
     assert len(report["steps"]) == 3  # 2 levels + 1 interferometer
     assert report["plan"]["worst_profile_sigma_um"] < report["prior_only"]["worst_profile_sigma_um"]
     lines = (out / "plan.csv").read_text().splitlines()
@@ -313,6 +316,7 @@ def test_cli_writes_the_plan_and_refuses_bad_input(tmp_path, capsys):
         ["--sites", str(sites)],
         ["--criterion", "work"],
         ["--level-reads", "ECX"],
+        ["--mesh", "0x4"],
     ):
         dest = tmp_path / "bad"
         assert main(["plan", "--out", str(dest), "--quiet", *extra]) == 2, extra

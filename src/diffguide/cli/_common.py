@@ -33,7 +33,7 @@ exit status:
   1  internal error (a bug: please report it with the traceback)"""
 
 #: commands that build the table mesh, and so take ``--mesh``
-MESH_COMMANDS = ("table", "simulate", "fit", "montecarlo")
+MESH_COMMANDS = ("table", "simulate", "fit", "montecarlo", "plan")
 
 DEFAULT_CACHE_DIR = Path("~/.cache/diffguide/jax")
 #: condensed tables (:mod:`diffguide.fe.cache`) live in this sub-folder of the cache folder

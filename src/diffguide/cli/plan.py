@@ -379,7 +379,7 @@ def run(args) -> int:
     positions = np.linspace(-half, half, args.positions) * 1e-3
 
     def make_machine(**kw):
-        return build_machine(spec, points=sites, **kw)
+        return build_machine(spec, nx=args.nx, ny=args.ny, points=sites, **kw)
 
     say(
         args,
@@ -417,6 +417,7 @@ def run(args) -> int:
         "command": "diffguide plan",
         "preset": None if args.config else args.preset,
         "config": args.config,
+        "mesh": args.mesh,  # None: the machine's default table mesh
         "criterion": args.criterion,
         "criterion_unit": "nats" if args.criterion == "D" else "µm (µm/m for angles)",
         "lambda": result.lam,
