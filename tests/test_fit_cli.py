@@ -183,3 +183,18 @@ def test_help_mentions_units(capsys):
         main(["fit", "--help"])
     text = capsys.readouterr().out
     assert "--knot-spacing-mm" in text and "µm/m" in text and "--quiet" in text
+
+
+def test_output_folder_has_the_usual_permissions(tmp_path):
+    """The staged folder (made 0700 by mkdtemp) ends with the permissions the umask gives a
+    new folder, like one made by ``mkdir``."""
+    import os
+
+    from diffguide.cli.fit import _write_dir
+
+    (tmp_path / "ref").mkdir()
+    _write_dir(tmp_path / "out", {"a.txt": "x\n"})
+    mode = (tmp_path / "out").stat().st_mode & 0o777
+    assert mode == (tmp_path / "ref").stat().st_mode & 0o777, oct(mode)
+    assert (tmp_path / "out" / "a.txt").read_text() == "x\n"
+    assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]

@@ -82,3 +82,35 @@ def test_a_worker_that_dies_after_the_jobs_were_sent_still_gives_the_files(tmp_p
     worker.wait()
     worker.close()
     assert (tmp_path / "curves.png").exists() and (tmp_path / "profiles.png").exists()
+
+
+def test_a_file_error_in_the_worker_is_raised_as_the_same_oserror(tmp_path):
+    """A missing folder (or a full disk) is the user's error, not a bug: the worker's
+    ``FileNotFoundError`` comes back as such, as when drawn here."""
+    missing = tmp_path / "gone"
+    with pytest.raises(FileNotFoundError):
+        save_jobs(missing, _jobs()[:1], dpi=40)
+    with FigureWorker().start() as worker:
+        worker.submit(missing, _jobs()[:1], dpi=40)
+        with pytest.raises(FileNotFoundError) as info:
+            worker.wait()
+    assert any("figures' process" in note for note in info.value.__notes__)
+
+
+def test_a_job_that_does_not_pickle_is_drawn_here(tmp_path):
+    """A job the pipe cannot carry (here a lambda in its arguments) falls back to this process,
+    where it meets the same error as it would without a worker."""
+    job = FigureJob("diffguide.plotting.fit:curves_figure", (_channels(),), {"bad": lambda: 0})
+    with FigureWorker().start() as worker:
+        worker.submit(tmp_path, [("x.png", job)])
+        assert not worker.running
+        with pytest.raises(TypeError, match="bad"):
+            worker.wait()
+
+
+def test_close_stops_an_idle_worker_at_once():
+    """Nothing sent: the worker is killed, not waited for (it may still import matplotlib)."""
+    worker = FigureWorker().start()
+    proc = worker._proc
+    worker.close()
+    assert proc.returncode is not None and proc.returncode != 0

@@ -3,10 +3,13 @@
 jax/jaxlib 0.10.2 returned a wrong ``jacfwd`` through the hand-written implicit solve in about
 one of four fresh compilations on a 2-core CPU (and sometimes deadlocked); 0.9.2 was clean. A
 wrong Jacobian is silent, so this test compiles the full fit Jacobian in two fresh processes and
-requires them to agree (test_inverse.py compares it with central differences).
+requires them to agree (test_inverse.py compares it with central differences); the second
+process compiles with the command line's XLA flags for the installed jaxlib
+(``cli._common.XLA_CPU_FLAGS``), so these are held to the same Jacobian.
 """
 
 import json
+import os
 import pathlib
 import subprocess
 import sys
@@ -16,6 +19,7 @@ import numpy as np
 import pytest
 
 from diffguide._core import stack
+from diffguide.cli._common import XLA_CPU_FLAGS
 
 _JACOBIAN = r"""
 import json, sys
@@ -33,14 +37,21 @@ print(json.dumps(list(np.asarray(fit.jacobian_full).shape)))
 
 def test_fit_jacobian_is_the_same_in_two_fresh_processes(tmp_path):
     data = pathlib.Path(__file__).parents[1] / "data" / "majda2012_measurements.csv"
+    from importlib.metadata import version
+
+    cli_flags = " ".join(XLA_CPU_FLAGS.get(version("jaxlib"), ()))
     jacs = []
     for k in range(2):
         out = tmp_path / f"J{k}.npy"
+        env = dict(os.environ)
+        if k == 1 and cli_flags:
+            env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} {cli_flags}".strip()
         proc = subprocess.run(
             [sys.executable, "-c", _JACOBIAN, str(data), str(out)],
             capture_output=True,
             text=True,
             timeout=900,
+            env=env,
         )
         assert proc.returncode == 0, proc.stderr[-2000:]
         shape = json.loads(proc.stdout.strip().splitlines()[-1])

@@ -145,8 +145,11 @@ def console_main() -> None:
 
     code = main()
     atexit._run_exitfuncs()  # logging, JAX and anything else registered
-    sys.stdout.flush()
-    sys.stderr.flush()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a reader gone (a closed pipe): the status still counts
+            pass
     os._exit(code)
 
 

@@ -367,6 +367,9 @@ class _Staging:
             old = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.", suffix=".old",
                                         dir=self.out.parent))
             os.replace(self.out, old / self.out.name)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(self.tmp, 0o777 & ~umask)  # mkdtemp makes 0700; give the usual permissions
         os.replace(self.tmp, self.out)
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
@@ -448,17 +451,21 @@ def run(args) -> int:
     with _Staging(Path(args.out)) as staged:
         figures = getattr(args, "figures", None) or FigureWorker()
         plots = {} if args.no_plots else _figures(meas, fits, profiles, s_m, truth)
-        if plots:  # drawn by the figures' process while the rest is computed
-            figures.submit(staged.tmp, list(plots.items()), dpi=110)
-        report = _report(args, meas, fits, profiles, truth, seconds, machine)
-        files = {"rails.csv": _rails_csv(s_m, *profiles[""])}
-        if "_rigid" in fits:
-            files["rails_rigid.csv"] = _rails_csv(s_m, *profiles["_rigid"])
-        files["fit.csv"] = _fit_csv(meas, fits)
-        report["total_seconds"] = time.perf_counter() - t_start
-        files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
-        staged.write(files)
-        figures.wait()
+        try:
+            if plots:  # drawn by the figures' process while the rest is computed
+                figures.submit(staged.tmp, list(plots.items()), dpi=110)
+            report = _report(args, meas, fits, profiles, truth, seconds, machine)
+            files = {"rails.csv": _rails_csv(s_m, *profiles[""])}
+            if "_rigid" in fits:
+                files["rails_rigid.csv"] = _rails_csv(s_m, *profiles["_rigid"])
+            files["fit.csv"] = _fit_csv(meas, fits)
+            report["total_seconds"] = time.perf_counter() - t_start
+            files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
+            staged.write(files)
+            figures.wait()
+        except BaseException:
+            figures.close(kill=True)  # stop drawing into the staging folder before it goes
+            raise
         staged.commit()
     files.update(plots)
     if args.export_compensation:

@@ -14,7 +14,8 @@ The worker never imports JAX: only NumPy, matplotlib and :mod:`diffguide.plottin
 
 Protocol (pickle over the worker's stdin/stdout, one message each way per batch): the main
 process sends ``(folder, [(file name, FigureJob), ...], dpi)``; the worker answers ``None``
-when every file is written, or the formatted traceback of the first failure.
+when every file is written, or ``(exception or None, formatted traceback)`` of the first failure
+(the exception where it pickles: an ``OSError`` is raised again as such).
 """
 
 from __future__ import annotations
@@ -69,6 +70,8 @@ class FigureWorker:
         self._pending: list[tuple[Path, list, int, bool]] = []
 
     def start(self) -> FigureWorker:
+        if not sys.executable or getattr(sys, "frozen", False):
+            return self  # no Python interpreter to start (embedded or frozen): drawn here
         try:
             self._proc = subprocess.Popen(
                 [sys.executable, "-m", "diffguide.plotting.render"],
@@ -77,7 +80,7 @@ class FigureWorker:
                 stderr=subprocess.DEVNULL,
                 env={**os.environ, "MPLBACKEND": "Agg"},  # the child's own setting: files only
             )
-        except OSError:
+        except (OSError, ValueError, TypeError):
             self._proc = None
         return self
 
@@ -91,45 +94,60 @@ class FigureWorker:
         sent = False
         if self.running:
             try:
-                pickle.dump((str(folder), jobs, dpi), self._proc.stdin)
+                message = pickle.dumps((str(folder), jobs, dpi))
+                self._proc.stdin.write(message)
                 self._proc.stdin.flush()
                 sent = True
-            except (OSError, pickle.PicklingError):
-                self.close()
+            except Exception:  # not picklable (TypeError, AttributeError, ...) or a dead pipe
+                self.close(kill=True)
         self._pending.append((Path(folder), jobs, dpi, sent))
 
     def wait(self) -> None:
-        """Return when every submitted figure is saved. A figure that fails raises
-        ``RuntimeError`` with the worker's traceback; a worker that died (or never started)
-        leaves its jobs to be drawn here."""
+        """Return when every submitted figure is saved. A figure that fails raises its error
+        (``OSError`` as such: a full disk, a missing folder; any other as ``RuntimeError``) with
+        the worker's traceback; a worker that died (or never started) leaves its jobs to be
+        drawn here."""
         pending, self._pending = self._pending, []
         for folder, jobs, dpi, sent in pending:
             if sent and self._proc is not None:
                 try:
                     answer = pickle.load(self._proc.stdout)
                 except (EOFError, OSError, pickle.UnpicklingError):  # died: draw them here
-                    self.close()
+                    self.close(kill=True)
                 else:
                     if answer is None:
                         continue
-                    self.close()
-                    raise RuntimeError(f"drawing the figures failed:\n{answer}")
+                    self.close(kill=True)
+                    error, trace = answer
+                    if isinstance(error, OSError):
+                        error.add_note(f"(in the figures' process)\n{trace}")
+                        raise error
+                    raise RuntimeError(f"drawing the figures failed:\n{trace}")
             save_jobs(folder, jobs, dpi)
 
-    def close(self) -> None:
-        """Stop the worker (it exits when its input closes)."""
+    def close(self, kill: bool = False) -> None:
+        """Stop the worker: at once where it has nothing to draw (or ``kill``), else when it
+        has saved what it was sent (it exits when its input closes; 5 s at most)."""
         proc, self._proc = self._proc, None
         if proc is None:
             return
-        try:
-            proc.stdin.close()
-        except OSError:
-            pass
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
+        if kill or not any(sent for *_, sent in self._pending):
             proc.kill()
-            proc.wait()
+        else:
+            try:
+                proc.stdin.close()
+            except OSError:
+                pass
+            try:
+                proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+        proc.wait()
+        for pipe in (proc.stdin, proc.stdout):
+            try:
+                pipe.close()
+            except OSError:
+                pass
 
     def __enter__(self) -> FigureWorker:
         return self
@@ -151,8 +169,13 @@ def _serve(stdin, stdout) -> None:
         try:
             save_jobs(Path(folder), jobs, dpi)
             answer = None
-        except Exception:  # reported to the main process, which raises it
-            answer = traceback.format_exc()
+        except Exception as exc:  # reported to the main process, which raises it
+            trace = traceback.format_exc()
+            try:
+                pickle.dumps(exc)
+            except Exception:
+                exc = None
+            answer = (exc, trace)
         pickle.dump(answer, stdout)
         stdout.flush()
 
