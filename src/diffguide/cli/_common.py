@@ -42,9 +42,9 @@ TABLE_SUBDIR = "tables"
 EXPORT_SUBDIR = "exports"
 #: XLA's CPU compiler settings for a command-line run, by the jaxlib versions they were measured
 #: on (XLA aborts on a flag it does not know, so never for other versions): XLA's classic loop
-#: emitters instead of the fusion emitters (first ``diffguide fit`` on the bundled data 8.4 →
-#: 6.5 s, first ``simulate`` 3.6 → 2.7 s, medians of 3, idle 2-core x86-64, jaxlib 0.9.2;
-#: results equal to ~1e-12). (``--xla_cpu_use_thunk_runtime=false`` is ignored by jaxlib 0.9.2,
+#: emitters instead of the fusion emitters (first ``diffguide fit`` on the bundled data 7.0–8.4
+#: → 6.3–6.5 s, first ``simulate`` 3.4–3.6 → 2.7–2.9 s, medians of 3 in alternating rounds,
+#: idle 2-core x86-64, jaxlib 0.9.2; results equal to ~1e-12). (``--xla_cpu_use_thunk_runtime=false`` is ignored by jaxlib 0.9.2,
 #: which only logs that it is no longer supported.) A user's own ``XLA_FLAGS`` are kept and win.
 XLA_CPU_FLAGS = {
     "0.9.2": ("--xla_cpu_use_fusion_emitters=false",),
