@@ -149,3 +149,23 @@ def test_simulate_rejects_bad_rails_file(tmp_path, capsys, content, message):
 def test_simulate_rejects_bad_arguments(tmp_path, capsys, args, message):
     assert main(["simulate", "--out", str(tmp_path / "e.csv"), "--quiet", *args]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_command_run_in_process_keeps_the_callers_figures_and_backend(tmp_path):
+    """A notebook that has pyplot open calls a command: its backend and its figures stay, and
+    the command leaves none of its own figures open."""
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    backend = matplotlib.get_backend()
+    mine = plt.figure()
+    try:
+        before = set(plt.get_fignums())
+        args = ["stiffness", "--preset", "majda2012", "--steps", "3", "--max-load", "2000"]
+        png = tmp_path / "s.png"
+        assert main([*args, "--out", str(tmp_path / "s.csv"), "--plot", str(png)]) == 0
+        assert png.read_bytes()[:4] == b"\x89PNG"
+        assert set(plt.get_fignums()) == before and plt.fignum_exists(mine.number)
+        assert matplotlib.get_backend() == backend
+    finally:
+        plt.close(mine)

@@ -101,9 +101,10 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command; returns the exit status (see ``EXIT_CODES``)."""
     parser = build_parser()
     args = parser.parse_args(_glue_negative_ranges(sys.argv[1:] if argv is None else list(argv)))
-    os.environ["MPLBACKEND"] = "Agg"  # files only: no display needed
-    if "matplotlib" in sys.modules:  # called in a process that has it (its backend is chosen)
-        sys.modules["matplotlib"].use("Agg")
+    if "matplotlib" not in sys.modules:
+        # files only: no display needed. A caller that has matplotlib already (a notebook)
+        # keeps its backend and its figures: the commands save and close only their own
+        os.environ["MPLBACKEND"] = "Agg"
     from ..plotting.render import FigureWorker
 
     args.figures = FigureWorker()

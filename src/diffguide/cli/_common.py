@@ -44,8 +44,9 @@ EXPORT_SUBDIR = "exports"
 #: on (XLA aborts on a flag it does not know, so never for other versions): XLA's classic loop
 #: emitters instead of the fusion emitters (first ``diffguide fit`` on the bundled data 7.0–8.4
 #: → 6.3–6.5 s, first ``simulate`` 3.4–3.6 → 2.7–2.9 s, medians of 3 in alternating rounds,
-#: idle 2-core x86-64, jaxlib 0.9.2; results equal to ~1e-12). (``--xla_cpu_use_thunk_runtime=false`` is ignored by jaxlib 0.9.2,
-#: which only logs that it is no longer supported.) A user's own ``XLA_FLAGS`` are kept and win.
+#: idle 2-core x86-64, jaxlib 0.9.2; results equal to ~1e-12). (``--xla_cpu_use_thunk_runtime=
+#: false`` is ignored by jaxlib 0.9.2, which only logs that it is no longer supported.) A user's
+#: own ``XLA_FLAGS`` are kept and win.
 XLA_CPU_FLAGS = {
     "0.9.2": ("--xla_cpu_use_fusion_emitters=false",),
 }
@@ -270,3 +271,16 @@ def _set_xla_cpu_flags() -> None:
     extra = [f for f in flags if f.split("=", 1)[0] not in named]
     if extra:
         os.environ["XLA_FLAGS"] = " ".join([given, *extra]).strip()
+
+
+def save_figure(fig, path, dpi: int) -> None:
+    """Save a command's pyplot ``fig`` to ``path`` (atomically) and close it: a command called
+    in a long-lived process (a notebook) leaves no figure of its own open there."""
+    import matplotlib.pyplot as plt
+
+    from ..io.atomic import atomic_savefig
+
+    try:
+        atomic_savefig(fig, path, dpi=dpi)
+    finally:
+        plt.close(fig)

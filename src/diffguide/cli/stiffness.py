@@ -48,7 +48,8 @@ def carriage_for(preset: str):
 
 def run(args) -> int:
     from ..guideway.solve import static_characteristics
-    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
+    from ..io.atomic import atomic_write_text  # here: --help imports no JAX
+    from ._common import save_figure
 
     if not args.max_load > 0:
         raise ValueError(f"--max-load must be > 0 N, got {args.max_load}")
@@ -93,6 +94,6 @@ def run(args) -> int:
         fig = figure_of(
             plot_static_characteristic(curves, title=f"{args.preset}: static characteristic")
         )
-        atomic_savefig(fig, args.plot, dpi=120)
+        save_figure(fig, args.plot, dpi=120)
         say(f"wrote {args.plot}")
     return 0
