@@ -43,6 +43,7 @@ import equinox as eqx
 import jax
 
 from .atomic import atomic_write
+from .cachedir import touch
 from .fingerprint import code_fingerprint
 
 #: Bumped when the file layout changes.
@@ -214,6 +215,8 @@ class cached_program:
         except Exception:  # missing, partial, foreign, old: export again
             return None
         stats["hits"] += 1
+        touch(prog_path)  # used now: the cache's size limit removes the least recently used
+        touch(out_path)
         return self._jit(exported), template
 
     def _export(self, key: str, args: tuple):

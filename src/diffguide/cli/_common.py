@@ -5,6 +5,7 @@ Nothing here imports JAX or matplotlib: ``diffguide --help`` must answer at once
 """
 
 import argparse
+import math
 import os
 import sys
 import warnings
@@ -36,6 +37,9 @@ exit status:
 MESH_COMMANDS = ("table", "simulate", "fit", "montecarlo", "plan")
 
 DEFAULT_CACHE_DIR = Path("~/.cache/diffguide/jax")
+#: the cache folder's size limit (MB; ``$DIFFGUIDE_CACHE_MAX_MB`` overrides it): beyond it the
+#: least recently used entries are removed when a command starts (:mod:`diffguide._core.cachedir`)
+DEFAULT_CACHE_MAX_MB = 1024.0
 #: condensed tables (:mod:`diffguide.fe.cache`) live in this sub-folder of the cache folder
 TABLE_SUBDIR = "tables"
 #: exported (traced) programs (:mod:`diffguide._core.aot`) live in this sub-folder
@@ -246,6 +250,9 @@ def prepare_runtime(args) -> None:
 
             set_table_cache_dir(folder / TABLE_SUBDIR)
             set_export_dir(folder / EXPORT_SUBDIR)
+            from .._core.cachedir import prune
+
+            prune(folder, cache_max_bytes())
     if folder is None:  # --no-cache (an earlier in-process run may have set a folder)
         from .._core.aot import set_export_dir
         from ..fe.cache import set_table_cache_dir
@@ -255,6 +262,21 @@ def prepare_runtime(args) -> None:
     from .._core.precision import enable_x64
 
     enable_x64()
+
+
+def cache_max_bytes() -> int:
+    """The cache folder's size limit in bytes: ``$DIFFGUIDE_CACHE_MAX_MB`` (MB, > 0), else
+    :data:`DEFAULT_CACHE_MAX_MB`; ``ValueError`` naming the variable for anything else."""
+    text = os.environ.get("DIFFGUIDE_CACHE_MAX_MB", "").strip()
+    if not text:
+        return int(DEFAULT_CACHE_MAX_MB * 2**20)
+    try:
+        mb = float(text)
+    except ValueError:
+        mb = float("nan")
+    if not (math.isfinite(mb) and mb > 0):
+        raise ValueError(f"DIFFGUIDE_CACHE_MAX_MB must be a size in MB > 0, got {text!r}")
+    return int(mb * 2**20)
 
 
 def _set_xla_cpu_flags() -> None:

@@ -32,6 +32,7 @@ import jax
 import numpy as np
 
 from .._core.atomic import atomic_write
+from .._core.cachedir import touch
 from .._core.fingerprint import code_fingerprint
 
 #: Bumped when the file layout changes.
@@ -106,6 +107,7 @@ def load(key: str | None):
         stats["misses"] += 1
         return None
     stats["hits"] += 1
+    touch(path)  # used now: the cache's size limit removes the least recently used first
     import jax.numpy as jnp
 
     return CondensedTable(**{k: jnp.asarray(v) for k, v in arrays.items()})
