@@ -56,3 +56,24 @@ def test_profiles_legend_outside_and_every_fit_has_its_band():
         labels = [t.get_text() for t in legend.get_texts()]
         assert "rail 1 rigid table ±2σ" in labels and "rail 2 elastic ±2σ" in labels
     plt.close("all")
+
+
+def test_bare_figures_are_not_pyplots():
+    """Inside ``bare_figures()`` a new figure is a bare Figure (nothing registered with pyplot,
+    nothing to close: the command line's files); outside it is pyplot's (a notebook shows it)."""
+    import matplotlib.pyplot as plt
+
+    from diffguide.plotting import bare_figures
+    from diffguide.plotting.guideway import plot_static_characteristic
+
+    curves = {"down": (np.array([0.0, 1e3]), np.array([0.0, 2.0]))}
+    before = set(plt.get_fignums())
+    with bare_figures():
+        ax = plot_static_characteristic(curves)
+    assert set(plt.get_fignums()) == before
+    assert ax.figure.get_size_inches().tolist() == [6.0, 4.2]
+    ax2 = plot_static_characteristic(curves)
+    try:
+        assert plt.fignum_exists(ax2.figure.number)
+    finally:
+        plt.close(ax2.figure)

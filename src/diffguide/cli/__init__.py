@@ -103,8 +103,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(_glue_negative_ranges(sys.argv[1:] if argv is None else list(argv)))
     if "matplotlib" not in sys.modules:
         # files only: no display needed. A caller that has matplotlib already (a notebook)
-        # keeps its backend and its figures: the commands save and close only their own
+        # keeps its backend and its figures: the commands draw on bare figures
         os.environ["MPLBACKEND"] = "Agg"
+    from ..plotting import bare_figures
     from ..plotting.render import FigureWorker
 
     args.figures = FigureWorker()
@@ -113,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
             args.figures.start()  # before JAX: it imports matplotlib on the other core meanwhile
         normalise_mesh(args, args.command)
         prepare_runtime(args)
-        return int(args.func(args) or 0)
+        with bare_figures():  # the commands' figures are files: none made through pyplot
+            return int(args.func(args) or 0)
     except (ValueError, OSError) as exc:  # bad input: one line, no traceback
         print(f"diffguide {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

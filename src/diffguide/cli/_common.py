@@ -296,13 +296,13 @@ def _set_xla_cpu_flags() -> None:
 
 
 def save_figure(fig, path, dpi: int) -> None:
-    """Save a command's pyplot ``fig`` to ``path`` (atomically) and close it: a command called
-    in a long-lived process (a notebook) leaves no figure of its own open there."""
-    import matplotlib.pyplot as plt
-
+    """Save a command's ``fig`` to ``path`` (atomically); a pyplot figure (a command run outside
+    :func:`main`, which draws on bare figures) is closed: a command called in a long-lived
+    process (a notebook) leaves no figure of its own open there."""
     from ..io.atomic import atomic_savefig
 
     try:
         atomic_savefig(fig, path, dpi=dpi)
     finally:
-        plt.close(fig)
+        if "matplotlib.pyplot" in sys.modules:
+            sys.modules["matplotlib.pyplot"].close(fig)

@@ -1,6 +1,6 @@
 """Figures of joint kinematic errors against table position (the paper's Figs. 7–9)."""
 
-import matplotlib.pyplot as plt
+import matplotlib
 import numpy as np
 
 from ..io.units import ERROR_LABELS
@@ -20,7 +20,7 @@ def plot_joint_errors(positions_mm, errors_user, point_names, title="", compare=
         the (2, 3) array of Axes.
     """
     fig, axes = axes_grid(ax, 2, 3, figsize=(13, 6.5), sharex=True, constrained_layout=True)
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colors = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, ax in enumerate(axes.flat):
         name, unit, what = ERROR_LABELS[k]
         for j, pname in enumerate(point_names):

@@ -1,6 +1,6 @@
 """Figures for one carriage: the static characteristic (Majda 2012, Fig. 3)."""
 
-import matplotlib.pyplot as plt
+from . import new_figure
 
 
 def plot_static_characteristic(curves: dict, title: str = "", *, ax=None):
@@ -13,7 +13,7 @@ def plot_static_characteristic(curves: dict, title: str = "", *, ax=None):
         the Axes.
     """
     if ax is None:
-        _, ax = plt.subplots(figsize=(6, 4.2), constrained_layout=True)
+        ax = new_figure(figsize=(6, 4.2), constrained_layout=True).subplots()
     styles = {"down": "-", "up": "--", "lateral": ":"}
     for name, (loads, defl) in curves.items():
         ax.plot(loads / 1e3, defl, styles.get(name, "-"), lw=2, label=name)

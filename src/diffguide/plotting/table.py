@@ -1,10 +1,11 @@
 """Figure of the table mesh and its deflected shape (matplotlib; never imported by the core)."""
 
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib import cm, colors
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import MaxNLocator
+
+from . import new_figure
 
 
 def plot_table(model, node_u, *, scale: float | None = None, title: str = "", ax=None):
@@ -27,7 +28,7 @@ def plot_table(model, node_u, *, scale: float | None = None, title: str = "", ax
     u = np.asarray(node_u).reshape(len(xs), len(ys), 6)
     uz_um = u[:, :, 2] * 1e6
     if ax is None:
-        fig = plt.figure(figsize=(13, 5.2))
+        fig = new_figure(figsize=(13, 5.2))
         ax, ax3 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2, projection="3d")
     else:
         ax, ax3 = ax
