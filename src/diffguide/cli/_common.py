@@ -294,15 +294,3 @@ def _set_xla_cpu_flags() -> None:
     if extra:
         os.environ["XLA_FLAGS"] = " ".join([given, *extra]).strip()
 
-
-def save_figure(fig, path, dpi: int) -> None:
-    """Save a command's ``fig`` to ``path`` (atomically); a pyplot figure (a command run outside
-    :func:`main`, which draws on bare figures) is closed: a command called in a long-lived
-    process (a notebook) leaves no figure of its own open there."""
-    from ..io.atomic import atomic_savefig
-
-    try:
-        atomic_savefig(fig, path, dpi=dpi)
-    finally:
-        if "matplotlib.pyplot" in sys.modules:
-            sys.modules["matplotlib.pyplot"].close(fig)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core.atomic import usual_mode
 from ._common import say
 
 PRESETS = ("majda2012",)
@@ -367,9 +368,7 @@ class _Staging:
             old = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.", suffix=".old",
                                         dir=self.out.parent))
             os.replace(self.out, old / self.out.name)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(self.tmp, 0o777 & ~umask)  # mkdtemp makes 0700; give the usual permissions
+        os.chmod(self.tmp, usual_mode(0o777))  # mkdtemp makes 0700
         os.replace(self.tmp, self.out)
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)

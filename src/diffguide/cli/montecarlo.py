@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from ._common import add_machine_arguments, save_figure
+from ._common import add_machine_arguments
 from .simulate import default_positions, parse_mesh, parse_positions
 
 _KERNELS = {"se": "squared_exponential", "matern52": "matern52"}
@@ -159,7 +159,7 @@ def split_cpu_into_devices(n: int | None = None) -> bool:
 
 
 def run(args) -> int:
-    from ..io.atomic import atomic_write_text  # here: --help imports no JAX
+    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
 
     _check(args)
     if args.cpu_devices is None or args.cpu_devices > 1:
@@ -229,7 +229,7 @@ def run(args) -> int:
             f"({args.kernel}, {args.planes}), mounting {args.mounting}, {len(positions)} positions"
         )
         fig = figure_of(plot_monte_carlo(result, title))
-        save_figure(fig, args.plot, dpi=110)
+        atomic_savefig(fig, args.plot, dpi=110)
         say(f"wrote {args.plot}")
     if n_bad == result.n_samples:
         print("diffguide montecarlo: error: no sample converged", file=sys.stderr)

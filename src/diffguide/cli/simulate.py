@@ -4,7 +4,7 @@ import argparse
 
 import numpy as np
 
-from ._common import add_machine_arguments, machine_config, save_figure
+from ._common import add_machine_arguments, machine_config
 
 
 def parse_positions(text: str) -> np.ndarray:
@@ -126,7 +126,7 @@ def run(args) -> int:
     import sys
 
     from .._core.aot import cached_program
-    from ..io.atomic import atomic_write_text  # here: --help imports no JAX
+    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
     from ..io.config import spec_from_config
     from ..io.rails_csv import read_rails_csv
     from ..io.units import error_columns
@@ -200,7 +200,7 @@ def run(args) -> int:
                 f"{name}: errors over the table at x = {positions[k] * 1e3:g} mm",
             )
         )
-        save_figure(fig, args.field_plot, dpi=100)
+        atomic_savefig(fig, args.field_plot, dpi=100)
         say(f"wrote {args.field_plot}")
     if args.export_compensation:
         from pathlib import Path
@@ -237,6 +237,6 @@ def run(args) -> int:
         fig = figure_of(
             plot_joint_errors(positions * 1e3, errs, je.point_names, f"{name}, {what}, {table}")
         )
-        save_figure(fig, args.plot, dpi=110)
+        atomic_savefig(fig, args.plot, dpi=110)
         say(f"wrote {args.plot}")
     return 0

@@ -48,8 +48,7 @@ def carriage_for(preset: str):
 
 def run(args) -> int:
     from ..guideway.solve import static_characteristics
-    from ..io.atomic import atomic_write_text  # here: --help imports no JAX
-    from ._common import save_figure
+    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
 
     if not args.max_load > 0:
         raise ValueError(f"--max-load must be > 0 N, got {args.max_load}")
@@ -94,6 +93,6 @@ def run(args) -> int:
         fig = figure_of(
             plot_static_characteristic(curves, title=f"{args.preset}: static characteristic")
         )
-        save_figure(fig, args.plot, dpi=120)
+        atomic_savefig(fig, args.plot, dpi=120)
         say(f"wrote {args.plot}")
     return 0

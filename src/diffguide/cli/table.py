@@ -3,7 +3,7 @@
 import argparse
 import sys
 
-from ._common import add_machine_arguments, machine_spec, save_figure
+from ._common import add_machine_arguments, machine_spec
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -65,6 +65,7 @@ def run(args) -> int:
         atomic_write_text(args.out, "\n".join(lines) + "\n")
         say(f"wrote {args.out}")
     if args.plot:
+        from ..io.atomic import atomic_savefig
         from ..plotting import figure_of
         from ..plotting.table import plot_table
 
@@ -75,7 +76,7 @@ def run(args) -> int:
                 title=f"{machine_name}: sag under gravity on four carriages, max {sag:.2f} µm",
             )
         )
-        save_figure(fig, args.plot, dpi=120)
+        atomic_savefig(fig, args.plot, dpi=120)
         say(f"wrote {args.plot}")
     sys.stdout.flush()
     return 0
