@@ -36,12 +36,15 @@ XFAIL: dict[tuple[str, str], str] = {
     "same case it passes (95-100 % / 88-100 %, thickness 45-57 mm, mean 51)",
     ("error", "thickness_70mm"): _NOW + "profile errors 9/17/10/27 % (joint estimate 7/25/10/34 %, "
     "structure fixed at the preset 9/35/12/47 %); thickness 77 ± 10 mm (70). With the structure "
-    "known (oracle) 7/21/9/30 %: the bound is below what these data hold",
+    "known (oracle) 7/21/9/30 %: the bound is below what these data hold. The miss is the rails' "
+    "horizontal half-difference, 21 % (oracle 24 %); means and vertical difference 4-8 %",
     ("error", "preload_2pct"): _NOW + "profile errors 11/25/7/24 %: the preload is not determined "
     "by these data (reported as such) and the thickness takes up part of its effect; with the "
-    "structure known (oracle) 9/22/5/20 %",
+    "structure known (oracle) 9/22/5/20 %; the miss is the horizontal half-difference, 23 % "
+    "(oracle 19 %); means and vertical difference 3-9 %",
     ("error", "preload_13pct"): _NOW + "profile errors 6/8/5/16 % (joint estimate 6/16/5/21 %); "
-    "with the structure known (oracle) 6/8/5/17 %",
+    "with the structure known (oracle) 6/8/5/17 %; horizontal half-difference 10 % (oracle "
+    "11 %), the other combinations 3-7 %",
     ("structure", "preload_2pct"): _NOW + "thickness 65 ± 8 mm against 50 mm (2.1σ): the truth's "
     "preload (2 %) sits on the edge of the stated prior range and the thickness compensates",
 }
@@ -102,6 +105,10 @@ def test_score_closed_forms():
     np.testing.assert_allclose(sc.rms_um[0, 1], 1e6 * a / np.sqrt(2), rtol=0.01)
     np.testing.assert_allclose(sc.rms_um[1], 0.0, atol=1e-6)
     assert abs(sc.coverage[0, 1] - 0.5) < 0.02
+    # rail 1's horizontal error is half in the plane's mean and half in its half-difference
+    plane_rms = np.sqrt(np.mean(sc.truth_rms_um[:, 1] ** 2))
+    np.testing.assert_allclose(sc.combination_rel[1], 1e6 * a / np.sqrt(8) / plane_rms, rtol=0.01)
+    np.testing.assert_allclose(sc.combination_rel[0], 0.0, atol=1e-9)
     assert np.all(sc.coverage[1] == 1.0)
     assert np.isclose(sc.s[0] - basis.start, TRIM * L, atol=L / 400)
 
@@ -230,6 +237,23 @@ def test_wrong_structure_nearly_as_good_as_knowing_it(name):
     assert sc.overall_rel <= 1.2 * oracle.overall_rel + 0.02, (sc.overall_rel, oracle.overall_rel)
     assert sc.worst_rel <= 1.2 * oracle.worst_rel + 0.02, (sc.rel, oracle.rel)
     assert sc.overall_coverage >= min(oracle.overall_coverage, 0.95) - 0.02
+
+
+@pytest.mark.parametrize("name", WRONG_STRUCTURE)
+def test_wrong_structure_determined_combinations_within_15_percent(name):
+    """What the data determine, the structure estimated recovers within the 15 % bound: per
+    plane, the two rails' mean and, in the vertical plane, their difference (pitch, yaw and roll
+    see these), each within 15 % of the plane's truth RMS. The horizontal half-difference
+    ``(e₂ − e₁)/2`` moves the table only through its deformation — less the stiffer the table
+    and the softer the carriages — and carries the per-profile misses of the test above.
+    Measured (mean V, half-difference V, mean H | half-difference H): 4/8/5 | 21 % (70 mm),
+    3/9/6 | 23 % (2 %), 5/3/7 | 10 % (13 %), 3/4/6 | 5 % (30 mm); with the truth's structure
+    given (the oracle) the horizontal half-difference is 24/19/11/5 %."""
+    res = result(name)
+    assert res.fit is not None, res.error
+    rel = res.score.combination_rel
+    determined = [rel[0, 0], rel[0, 1], rel[1, 0]]
+    assert max(determined) <= 0.15, rel
 
 
 @pytest.mark.parametrize("name", _params("structure", WRONG_STRUCTURE))

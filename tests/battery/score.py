@@ -35,7 +35,9 @@ class Score:
         rms_um: RMS error. truth_rms_um: RMS of the gauge-fixed truth. rel: their ratio.
         sigma_rms_um: RMS of the fit's σ. coverage: fraction of points inside ±2σ.
         overall_rms_um, overall_truth_rms_um, overall_rel, overall_sigma_rms_um,
-            overall_coverage: over all four profiles together. s: the scored grid (m).
+            overall_coverage: over all four profiles together. combination_rel: ``(2 planes,
+            2 [mean, half-difference])`` RMS error of the two rails' combination over the
+            plane's truth RMS (item 4 of the module docstring). s: the scored grid (m).
     """
 
     rms_um: np.ndarray
@@ -48,6 +50,7 @@ class Score:
     overall_rel: float
     overall_sigma_rms_um: float
     overall_coverage: float
+    combination_rel: np.ndarray
     s: np.ndarray
 
     @property
@@ -80,6 +83,11 @@ def score_profiles(basis, fix_slope, values, sigma, truth, s) -> Score:
     rms = np.sqrt(np.mean(err**2, axis=-1))
     truth_rms = np.sqrt(np.mean(tru**2, axis=-1))
     inside = np.abs(err) <= 2 * sig
+    combination_rel = np.zeros((2, 2))
+    for p in range(2):
+        plane_rms = np.sqrt(np.mean(tru[:, p] ** 2))
+        for k, e in enumerate((0.5 * (err[0, p] + err[1, p]), 0.5 * (err[1, p] - err[0, p]))):
+            combination_rel[p, k] = np.sqrt(np.mean((e - e.mean()) ** 2)) / plane_rms
     return Score(
         rms_um=rms,
         truth_rms_um=truth_rms,
@@ -91,6 +99,7 @@ def score_profiles(basis, fix_slope, values, sigma, truth, s) -> Score:
         overall_rel=float(np.sqrt(np.mean(err**2)) / np.sqrt(np.mean(tru**2))),
         overall_sigma_rms_um=float(np.sqrt(np.mean(sig**2))),
         overall_coverage=float(inside.mean()),
+        combination_rel=combination_rel,
         s=s[keep],
     )
 
