@@ -144,15 +144,16 @@ def _subset(tmp_path, keep) -> Path:
     return path
 
 
-def test_interferometer_only_writes_an_honest_report(tmp_path):
+def test_interferometer_only_writes_an_honest_report(tmp_path, capsys):
     """One interferometer at the centre, pitch and yaw only (the commonest real data set) with a
     given λ: a report is written, λ is the given one, no NaN (the JSON has none by
-    construction: allow_nan=False), the rails' mean is determined and their difference is not.
+    construction: allow_nan=False), the rails' mean is determined and their difference is not,
+    and the console says which wavelengths of which combination the data leave to the prior.
     No rigid-table inversion unless asked for (--rigid / [fit] rigid)."""
     data = _subset(tmp_path, {"P5"})
     out = tmp_path / "o"
     rc = main(["fit", "--measurements", str(data), "--out", str(out), "--lambda", "0.01",
-               "--structure", "fixed", "--no-plots", "--quiet"])
+               "--structure", "fixed", "--no-plots"])
     assert rc in (0, 3)
     assert not (out / "rails_rigid.csv").exists()
     rep = json.loads((out / "report.json").read_text())
@@ -164,6 +165,32 @@ def test_interferometer_only_writes_an_honest_report(tmp_path):
     assert not combos["vertical difference"]["determined"]
     assert not combos["horizontal difference"]["determined"]
     assert len(list(csv.DictReader((out / "rails.csv").open()))) > 0
+    said = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("not determined")]
+    assert len(said) == 1
+    for name, c in combos.items():
+        for lo, hi in c["undetermined_wavelengths_mm"]:
+            assert f"{name} " in said[0] and f"{lo:.0f}–{hi:.0f}" in said[0]
+
+
+def test_undetermined_lines():
+    """The console's summary of the identifiability report: the bands per combination, and the
+    short-wave note only when no waviness is stated."""
+    from diffguide.cli.fit import undetermined_lines
+
+    ident = {"wavelengths": [
+        {"combination": "vertical mean ((rail 1 + rail 2)/2)",
+         "transfer": [{"wavelength_mm": 92.5, "transfer": 0.1}],
+         "undetermined_wavelengths_mm": [[92.5, 190.8], [285.1, 362.9]]},
+        {"combination": "horizontal difference (rail 2 − rail 1)",
+         "transfer": [{"wavelength_mm": 92.5, "transfer": 0.9}],
+         "undetermined_wavelengths_mm": []},
+    ]}
+    lines = undetermined_lines(ident, 0.0)
+    assert lines[0].endswith("wavelengths in mm: vertical mean 92–191, 285–363")
+    assert "shorter than 92 mm" in lines[1] and "--rail-waviness-um" in lines[1]
+    assert undetermined_lines(ident, 0.2e-6) == lines[:1]
+    ident["wavelengths"].pop(0)
+    assert undetermined_lines(ident, 0.2e-6) == []
 
 
 def test_not_converged_is_written_and_flagged(tmp_path, capsys):

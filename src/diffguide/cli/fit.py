@@ -474,6 +474,8 @@ def run(args) -> int:
         say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
              + (", rigid table {:.3f} µm".format(e["rigid_table"]["all"]) if "_rigid" in fits
                 else ""))
+    for line in undetermined_lines(report["identifiability"], elastic.waviness):
+        say(args, line)
     say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
     if not elastic.converged:
         print(f"diffguide fit: warning: the fit did not converge ({elastic.message}); the results "
@@ -481,6 +483,30 @@ def run(args) -> int:
               file=sys.stderr)
     sys.stdout.flush()
     return 0 if elastic.converged else EXIT_NOT_CONVERGED
+
+
+def undetermined_lines(ident: dict, waviness: float) -> list[str]:
+    """What the data do not determine, for the console: per combination of the two rails, the
+    wavelength bands (mm) whose transfer is below the report's threshold — there the profiles
+    are the prior's guess and their σ the prior's — and, when no waviness (m RMS) is stated,
+    that content shorter than the shortest analysed wavelength is outside the σ bands."""
+    bands = []
+    for c in ident["wavelengths"]:
+        if c["undetermined_wavelengths_mm"]:
+            spans = ", ".join(f"{lo:.0f}–{hi:.0f}" for lo, hi in c["undetermined_wavelengths_mm"])
+            bands.append(f"{c['combination'].split(' (')[0]} {spans}")
+    lines = []
+    if bands:
+        lines.append("not determined by the data (there the σ bands are the prior's), "
+                     "wavelengths in mm: " + "; ".join(bands))
+    if waviness == 0.0:
+        shortest = min((r["wavelength_mm"] for c in ident["wavelengths"] for r in c["transfer"]),
+                       default=None)
+        if shortest is not None:
+            lines.append(f"rail content shorter than {shortest:.0f} mm (two knot spacings: the "
+                         "profiles cannot hold it and the carriages average it out) is not in the "
+                         "σ bands: state its RMS with --rail-waviness-um")
+    return lines
 
 
 def _report(args, meas, fits, profiles, truth, seconds, machine) -> dict:
