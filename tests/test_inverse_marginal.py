@@ -20,6 +20,16 @@ def test_newton_finds_a_quadratic_minimum_and_its_exact_covariance():
     assert info["at_bound"] == [False, False] and info["message"] == "converged"
 
 
+def test_a_minimum_closer_than_the_tolerance_is_reached():
+    """A minimum 0.05 prior σ from the start (inside the stopping tolerance) is still reached:
+    the estimate is never left at its start by the stopping rule."""
+    K = np.array([[3.0, 1.2], [1.2, 2.5]])
+    m = np.array([0.03, -0.04])
+    q, _, _ = maximise_marginal(lambda q: (q - m) @ K @ (q - m), np.zeros(2),
+                                np.array([[-5.0, 5.0], [-5.0, 5.0]]))
+    np.testing.assert_allclose(q, m, atol=1e-9)
+
+
 def test_a_minimum_outside_the_box_is_flagged_and_a_flat_score_keeps_the_prior():
     K = np.diag([2.0, 2.0])
     q, _, info = maximise_marginal(lambda q: (q - 9.0) @ K @ (q - 9.0), np.zeros(2),

@@ -33,7 +33,8 @@ from .weight import _Spectrum
 _log = logging.getLogger("diffguide")
 #: Central-difference step in ``q`` (units of the prior σ).
 STEP = 0.3
-#: Newton iterations at most; a step shorter than :data:`TOL` (prior σ) ends them.
+#: Newton iterations at most; a step shorter than :data:`TOL` (prior σ) is taken without a
+#: check and ends them.
 MAX_ITER = 6
 TOL = 0.1
 
@@ -111,8 +112,9 @@ def maximise_marginal(score, q0, bounds, *, h: float = STEP, max_iter: int = MAX
             delta /= norm
         _log.info("fit: structure iteration %d, score %.6g, step %.3g (prior sigma)", it, f0,
                   norm)
-        if norm < TOL:
-            break
+        if norm < TOL:  # the stencil's quadratic model (±h around q) is good for this step:
+            q = np.clip(q + delta, lo, hi)  # take it (else a short first step left q at the
+            break  # prior: "exactly the prior" would be an artefact of this rule)
         for _ in range(5):
             q_new = np.clip(q + delta, lo, hi)
             if f(q_new) <= f0:
