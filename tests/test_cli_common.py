@@ -51,7 +51,8 @@ def test_version_names_the_stack(capsys):
 def test_every_command_has_the_common_flags_and_clean_help(name):
     p = _sub(name)
     flags = p._option_string_actions
-    assert "--quiet" in flags and "--cache-dir" in flags and "--no-cache" in flags
+    assert "--quiet" in flags and "-q" in flags and "--cache-dir" in flags and "--no-cache" in flags
+    assert flags["-q"] is flags["--quiet"]
     assert ("--mesh" in flags) == (name in MESH_COMMANDS)
     text = p.format_help()
     assert "(default: None)" not in text

@@ -144,11 +144,21 @@ def test_simulate_rejects_bad_rails_file(tmp_path, capsys, content, message):
         (["--positions", "-500:500:5"], "stroke"),
         (["--mesh", "0x5"], "--mesh"),
         (["--rails", "/nonexistent/rails.csv"], "cannot read rails file"),
+        (["--positions", "-300:300:5", "--field-at", "900"], "--field-at must lie within"),
+        (["--tol-um", "-1"], "--tol-um must be a finite number > 0"),
     ],
 )
 def test_simulate_rejects_bad_arguments(tmp_path, capsys, args, message):
     assert main(["simulate", "--out", str(tmp_path / "e.csv"), "--quiet", *args]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_simulate_plot_alone(tmp_path):
+    """``--plot`` without ``--field-plot`` (the README's form) writes the CSV and the figure."""
+    out, png = tmp_path / "e.csv", tmp_path / "e.png"
+    rc = main(["simulate", "--positions", "-300:300:5", "--out", str(out), "--plot", str(png),
+               "--quiet"])
+    assert rc == 0 and png.read_bytes()[:4] == b"\x89PNG" and out.exists()
 
 
 def test_a_command_run_in_process_keeps_the_callers_figures_and_backend(tmp_path):

@@ -120,6 +120,20 @@ def test_bad_waviness_is_refused_before_any_work(tmp_path, capsys):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("args, message", [
+    (["--at", "P9"], "--at must be one of the points P1, P2, P3, P4, P5, got 'P9'"),
+    (["--comp-points", "1"], "--comp-points must be in [2, 10000]"),
+    (["--tol-um", "-1"], "--tol-um must be a finite number > 0"),
+])
+def test_bad_export_options_are_refused_before_any_work(tmp_path, capsys, args, message):
+    """Exit 2 means nothing written: the export's options are checked before the fit."""
+    out = tmp_path / "o"
+    assert main(["fit", "--measurements", str(DATA), "--out", str(out), "--quiet",
+                 "--export-compensation", str(tmp_path / "c.txt"), *args]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists() and not (tmp_path / "c.txt").exists()
+
+
 def test_off_table_point_and_foreign_out_dir(tmp_path, capsys):
     far = tmp_path / "far.csv"
     far.write_text("position_mm,point,x_mm,y_mm,quantity,value,unit\n0,P9,900,0,EBX,1,um/m\n")

@@ -32,8 +32,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "the classical rigid-table inversion side by side). Input CSV: position_mm,point,x_mm,"
         "y_mm,quantity,"
         "value,unit[,sigma][,run][,direction][,instrument][,z_mm] (positions and points in mm; "
-        "values in µm, mm, µm/m, µrad, mrad or arcsec). Output folder (written atomically): "
-        "rails.csv (and rails_rigid.csv with --rigid) "
+        "values in µm, mm, nm, in, µm/m, mm/m, µrad, mrad, arcsec, arcmin or deg). Output "
+        "folder (written atomically): rails.csv (and rails_rigid.csv with --rigid) "
         "(rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um), fit.csv "
         "(every input row with fitted and residual, in its unit), report.json, profiles.png, "
         "curves.png. Exit codes: 0 converged; 3 results written but the fit did not converge "
@@ -120,7 +120,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "prediction from --at by more than this (µm)")
     p.add_argument("--tol-urad", type=float, default=5.0,
                    help="warn where another point's EAX/EBX/ECX depart from --at's by more (µrad)")
-    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run, figure_worker=True)
     return p
 
@@ -155,6 +155,16 @@ def _check_inputs(meas, args, cfg):
         v = getattr(args, name)
         if v is not None and not 1 <= v <= 200:
             raise ValueError(f"--{name} must be an integer in [1, 200], got {v}")
+    if args.export_compensation:  # checked here: a refusal after the fit would follow output
+        points = list(dict.fromkeys([*cfg["points"], *meas.point_names]))
+        if args.at not in points:
+            raise ValueError(f"--at must be one of the points {', '.join(points)}, "
+                             f"got {args.at!r}")
+        if not 2 <= args.comp_points <= 10000:
+            raise ValueError(f"--comp-points must be in [2, 10000], got {args.comp_points}")
+        for flag, tol in (("--tol-um", args.tol_um), ("--tol-urad", args.tol_urad)):
+            if not (np.isfinite(tol) and tol > 0):
+                raise ValueError(f"{flag} must be a finite number > 0, got {tol:g}")
 
 
 def read_truth(path, s_m):
@@ -625,11 +635,7 @@ def _export_compensation(args, cfg, measured_points, fit, family, x0_mm=0.0) -> 
     from ..studies.exports import export_compensation
 
     points = {k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()}
-    points.update(measured_points)
-    if args.at not in points:
-        raise ValueError(f"--at must be one of the points {', '.join(points)}, got {args.at!r}")
-    if not 2 <= args.comp_points <= 10000:
-        raise ValueError(f"--comp-points must be in [2, 10000], got {args.comp_points}")
+    points.update(measured_points)  # --at and the counts were checked before the fit
     kw = {}  # the fitted structure
     if "thickness" in fit.structure:
         kw["thickness"] = fit.structure["thickness"]["value"]

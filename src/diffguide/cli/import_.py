@@ -36,7 +36,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "position_mm is x already), the middle of the measured targets for the wide one",
     )
     p.add_argument("--out", required=True, metavar="FILE.csv", help="canonical long CSV to write")
-    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
     return p
 

@@ -60,7 +60,7 @@ def add_parser(sub) -> None:
                    "(default: one per core; 1 = no sharding)")
     p.add_argument("--out", required=True, help="output CSV (one row per sample)")
     p.add_argument("--plot", help="output figure (PNG) of the distributions")
-    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
 
 

@@ -102,7 +102,7 @@ def add_parser(sub) -> None:
         default=None,
         help="table position (mm) of --field-plot; default: the last position",
     )
-    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
 
 
@@ -133,6 +133,7 @@ def run(args) -> int:
     from ..machine.build import build_machine
     from ..machine.kinematics import joint_errors
     from ..machine.majda2012 import paper_variant
+    from ..plotting import figure_of
 
     cfg = machine_config(args)
     positions = (
@@ -143,6 +144,16 @@ def run(args) -> int:
         raise ValueError(
             f"--positions must lie within the ±{half_stroke:g} mm stroke, got {args.positions!r}"
         )
+    if args.field_at is not None and not (
+        positions.min() * 1e3 - 1e-9 <= args.field_at <= positions.max() * 1e3 + 1e-9
+    ):
+        raise ValueError(
+            f"--field-at must lie within the swept positions [{positions.min() * 1e3:g}, "
+            f"{positions.max() * 1e3:g}] mm, got {args.field_at:g}"
+        )
+    for flag, tol in (("--tol-um", args.tol_um), ("--tol-urad", args.tol_urad)):
+        if not (np.isfinite(tol) and tol > 0):
+            raise ValueError(f"{flag} must be a finite number > 0, got {tol:g}")
     nx, ny = parse_mesh(args.mesh) if args.mesh else (None, None)
     rails = read_rails_csv(args.rails) if args.rails else paper_variant(args.variant)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
@@ -186,7 +197,6 @@ def run(args) -> int:
     say(f"wrote {args.out}")
     if args.field_plot:
         from ..machine.kinematics import error_field
-        from ..plotting import figure_of
         from ..plotting.errors import plot_error_field
 
         k = len(positions) - 1
