@@ -234,3 +234,98 @@ def test_leave_one_out_deviation_matches_a_median_per_reading():
             v = rng.integers(0, 4, n).astype(float) if trial % 2 else rng.normal(size=n)
             ref = [abs(v[k] - np.median(np.delete(v, k))) for k in range(n)]
             np.testing.assert_allclose(leave_one_out_deviation(v), ref, rtol=0, atol=1e-15)
+
+
+def _identical_runs_text(quantity, unit, instrument, values, runs=5):
+    """Every run and direction of every position reads the same written value."""
+    lines = [HEADER + ",run,direction,instrument"]
+    for i, v in enumerate(values):
+        for run in range(1, runs + 1):
+            for d in ("forward", "backward"):
+                lines.append(f"{i * 20},P5,0,0,{quantity},{v},{unit},{run},{d},{instrument}")
+    return "\n".join(lines) + "\n"
+
+
+def test_identical_runs_get_the_instrument_floor_not_a_rounding_size_sigma():
+    # values whose means are not exact in binary: the pooled scatter is ~1e-22 m, not 0
+    values = [f"{0.1 * k - 3.697:.3f}" for k in range(36)]
+    text = _identical_runs_text("EXX", "um", "interferometer", values)
+    notes = []
+    m = merge_readings(parse_readings(text, "same.csv"), "same.csv", notes)
+    # floor: max(rounding 0.001 µm / √12, 0.1 × the 1 µm default) = 0.1 µm per reading, and the
+    # merged value is the mean of 10 readings
+    assert np.allclose(m.sigma, 0.1e-6 / math.sqrt(10), rtol=1e-12)
+    assert set(m.sigma_source) == {"floor"}
+    assert len(notes) == 1 and "EXX at P5 (interferometer)" in notes[0]
+    assert "below the floor 0.1 µm" in notes[0]
+
+
+def test_identical_runs_written_coarsely_get_the_rounding_floor():
+    # whole arcseconds: a rounding step of 1″ = π/648000 rad, uniform: σ = step/√12 (GUM F.2.2.1),
+    # above 0.1 × the level's 4 µm/m default
+    values = [str(k % 7 - 3) for k in range(36)]
+    m = merge_readings(parse_readings(_identical_runs_text("EBX", "arcsec", "level", values)))
+    step = math.pi / 648000
+    assert step / math.sqrt(12) > 0.4e-6
+    assert np.allclose(m.sigma, step / math.sqrt(12) / math.sqrt(10), rtol=1e-12)
+    assert set(m.sigma_source) == {"floor"}
+
+
+def test_a_real_scatter_above_the_floor_is_kept():
+    # 0.3 µm scatter of a linear interferometer: above its 0.1 µm floor, used as it is
+    rng = np.random.default_rng(3)
+    lines = [HEADER + ",run,direction"]
+    for i in range(36):
+        for run in range(5):
+            for d in ("forward", "backward"):
+                v = np.sin(i) + rng.normal(0, 0.3)
+                lines.append(f"{i * 20},P5,0,0,EXX,{v:.4f},um,{run},{d}")
+    notes = []
+    m = merge_readings(parse_readings("\n".join(lines)), notes=notes)
+    assert set(m.sigma_source) == {"scatter"} and not notes
+    assert m.sigma[0] * math.sqrt(10) * 1e6 == pytest.approx(0.3, rel=0.15)
+
+
+@pytest.mark.parametrize("raw, step", [("1.250", 1e-3), ("12", 1.0), ("-3.", 1.0), ("-.5", 0.1),
+                                       ("1.5e-3", 1e-4), ("2E2", 100.0), ("+0.00", 1e-2),
+                                       ("nan", 0.0), ("1_0", 0.0)])
+def test_written_step(raw, step):
+    from diffguide.io.measurements import written_step
+
+    assert written_step(raw) == pytest.approx(step, rel=1e-12)
+
+
+def test_differential_pair_rounding_adds_in_quadrature():
+    r = parse_readings(HEADER + ",reference\n0,P1,0,0,EBX,1.25,um/m,0.5\n")[0]
+    assert r.resolution == pytest.approx(math.hypot(0.01, 0.1) / math.sqrt(12) * 1e-6)
+
+
+#: EXX at P5 (µm) over the stroke, -350 ... 350 mm every 20 mm: noise-free readings of the
+#: bundled machine (made by the adversarial test of the σ floor, /tmp/advtest/with_exx.csv)
+_EXX_P5 = [-3.697, -3.393, -3.075, -2.761, -2.468, -2.212, -2.002, -1.839, -1.716, -1.623, -1.542,
+           -1.455, -1.343, -1.192, -0.996, -0.752, -0.469, -0.160, 0.160, 0.469, 0.752, 0.996,
+           1.192, 1.343, 1.455, 1.542, 1.623, 1.716, 1.839, 2.002, 2.212, 2.468, 2.761, 3.075,
+           3.393, 3.697]
+
+
+def test_fit_with_an_identical_runs_channel_has_chi2_of_order_one(tmp_path):
+    """The bundled data plus an EXX channel whose five runs are identical: before the floor the
+    channel's σ was ~1e-22 m and the fit returned χ²/dof 7e9 and rails 14 µm off the truth."""
+    import json
+    from pathlib import Path
+
+    from diffguide.cli import main
+
+    root = Path(__file__).resolve().parents[1]
+    text = (root / "data" / "majda2012_measurements.csv").read_text(encoding="utf-8")
+    rows = [f"{-350 + 20 * i:.1f},P5,0.0,0.0,EXX,{v:.3f},um,{run},{d},interferometer"
+            for i, v in enumerate(_EXX_P5) for run in range(1, 6) for d in ("forward", "backward")]
+    data = _write(tmp_path, text.rstrip("\n") + "\n" + "\n".join(rows) + "\n")
+    out = tmp_path / "out"
+    assert main(["fit", "--measurements", str(data), "--out", str(out), "--no-plots",
+                 "--truth", str(root / "data" / "majda2012_truth.csv"), "--quiet"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert "floor" in report["measurements"]["sigma_sources"]
+    assert 0.5 < report["elastic"]["chi2_per_dof"] < 2.0
+    # as good as the bundled data alone (0.2 µm; the README's table)
+    assert report["truth"]["rms_error_um"]["elastic"]["all"] < 0.4

@@ -48,7 +48,7 @@ def run(args) -> int:
 
     notes: list[str] = []
     readings = import_readings(args.input, args.layout, args.x0_mm, notes)
-    meas = merge_readings(readings, source=args.input)  # validates what fit would see
+    meas = merge_readings(readings, source=args.input, notes=notes)  # validates what fit sees
     text = format_long(readings, comment=f"imported from {args.input} by diffguide import")
     atomic_write_text(args.out, text)
     if not args.quiet:

@@ -276,7 +276,9 @@ def read_any(
 ):
     """Read and merge a measurement file in any supported layout
     (:class:`~diffguide.inverse.data.Measurements`, SI units)."""
-    return merge_readings(import_readings(path, layout, x0_mm, notes, info), source=os.fspath(path))
+    return merge_readings(
+        import_readings(path, layout, x0_mm, notes, info), source=os.fspath(path), notes=notes
+    )
 
 
 #: Units of the canonical file written by :func:`format_long`.

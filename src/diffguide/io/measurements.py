@@ -44,8 +44,20 @@ zero — and position:
    repeatability from the scatter — the pooled within-direction standard deviation over *all*
    positions of the channel, when it has at least :data:`MIN_SCATTER_DOF` degrees of freedom (a
    per-position scatter from five runs would be too noisy: its inverse square biases χ² by
-   ν/(ν−2)); else the instrument default (:data:`DEFAULT_SIGMA`: 4 µm/m for levels, 2 µm/m for
-   interferometers, 1 µm for linear interferometer optics);
+   ν/(ν−2)), but never below the channel's *floor* (below); else the instrument default
+   (:data:`DEFAULT_SIGMA`: 4 µm/m for levels, 2 µm/m for interferometers, 1 µm for linear
+   interferometer optics);
+
+   the floor is the larger of (a) the rounding of the written readings — half a unit of the last
+   digit written, ``q/2``, uniform: ``q/√12`` (GUM F.2.2.1), ``q`` the finest step among the
+   channel's readings (a writer that strips trailing zeros writes some readings coarser), in
+   quadrature for a differential pair — and (b) :data:`SCATTER_FLOOR_FRACTION` (1/10) of the
+   instrument default: 0.4 µm/m for a level, 0.2 µm/m for angular and 0.1 µm for linear
+   interferometer optics, about the resolution class of these instruments and finer than any
+   repeatability a machine tool's axis shows over runs. A smaller pooled scatter (runs that agree
+   to rounding: copies of one run, or a resolution coarser than the file shows) is not a
+   repeatability: it would give the channel a weight the data do not have. The rows are then
+   marked ``"floor"`` in :attr:`Measurements.sigma_source` and a note names the channel;
 4. the merged value's σ follows from step 2: ``σ_m² = ¼ (σ²/n_f + σ²/n_b)`` (``σ²/n`` with one
    direction).
 
@@ -58,6 +70,7 @@ import dataclasses
 import io
 import math
 import os
+import re
 from collections import defaultdict
 
 import numpy as np
@@ -88,6 +101,9 @@ DEFAULT_SIGMA = {("level", "angular"): 4e-6, ("interferometer", "angular"): 2e-6
                  ("interferometer", "linear"): 1e-6}
 #: Degrees of freedom a channel's pooled scatter needs before it replaces the default σ.
 MIN_SCATTER_DOF = 20
+#: The pooled scatter's floor, as a fraction of :data:`DEFAULT_SIGMA` (module docstring, step 3;
+#: the rounding of the written readings is the other floor).
+SCATTER_FLOOR_FRACTION = 0.1
 #: Readings per direction and position needed before a reading can be called an outlier.
 MIN_RUNS_FOR_OUTLIERS = 3
 #: Distance from the median of the other readings (robust σ) beyond which a reading is an outlier.
@@ -117,6 +133,9 @@ class Reading:
     direction: str  # "forward" or "backward"
     instrument: str
     z: float = 0.0  # height of the sensing point above the table top (m)
+    #: standard uncertainty of the rounding of the value as written (SI; ``q/√12``, ``q`` a unit
+    #: of its last digit; a differential pair's two roundings in quadrature; 0: unknown)
+    resolution: float = 0.0
 
 
 class _RowError(ValueError):
@@ -139,6 +158,19 @@ def _number(row, field, unit_hint):
     if not math.isfinite(v):
         _field_error(field, raw, "not finite", f"a finite number in {unit_hint}")
     return v
+
+
+_DECIMAL = re.compile(r"^[+-]?(?:\d+\.?(\d*)|\.(\d+))(?:[eE]([+-]?\d+))?$")
+
+
+def written_step(raw: str) -> float:
+    """The unit of the last digit of a number as written (``"1.250"`` → 0.001, ``"12"`` → 1,
+    ``"1.5e-3"`` → 1e-4), in the number's own unit; 0 when the text is not a plain decimal."""
+    m = _DECIMAL.match(raw.strip())
+    if not m:
+        return 0.0
+    decimals = len(m[1] or m[2] or "") - int(m[3] or 0)
+    return 10.0 ** -decimals
 
 
 def unit_key(unit: str, units: dict) -> str:
@@ -171,8 +203,11 @@ def _parse_row(row: dict, line: int) -> Reading:
         _field_error("unit", unit, f"not a unit of {quantity}", allowed)
     factor = units[key]
     value = _number(row, "value", unit) * factor
+    steps = [written_step(row["value"])]
     if (row.get("reference") or "").strip():  # differential pair: measuring minus reference
         value -= _number(row, "reference", unit) * factor
+        steps.append(written_step(row["reference"]))
+    resolution = math.sqrt(sum(q * q for q in steps) / 12) * factor if all(steps) else 0.0
     sigma = None
     if (row.get("sigma") or "").strip():
         sigma = _number(row, "sigma", unit) * factor
@@ -199,7 +234,7 @@ def _parse_row(row: dict, line: int) -> Reading:
         if not abs(z) <= 2.0:
             _field_error("z_mm", row["z_mm"], "out of range", "-2000 to 2000 mm")
     return Reading(line, position, point, xy, quantity, value, key, sigma, run, direction,
-                   instrument, z)
+                   instrument, z, resolution)
 
 
 def read_readings(path: str | os.PathLike, x0_mm: float = 0.0,
@@ -294,8 +329,20 @@ def leave_one_out_deviation(v) -> np.ndarray:
     return np.abs(v - med)
 
 
-def merge_readings(readings, source: str = "<readings>") -> Measurements:
-    """Merge runs and directions (see the module docstring) into :class:`Measurements`."""
+def _kind(quantity: str) -> str:
+    return "linear" if quantity in LINEAR else "angular"
+
+
+def _user_unit(quantity: str) -> str:
+    return "µm" if quantity in LINEAR else "µm/m"
+
+
+def merge_readings(readings, source: str = "<readings>",
+                   notes: list | None = None) -> Measurements:
+    """Merge runs and directions (see the module docstring) into :class:`Measurements`.
+
+    ``notes`` (a list) receives a line for every channel whose pooled scatter was raised to its
+    floor (step 3)."""
     readings = tuple(readings)
     if not readings:
         raise ValueError(f"{source}: no measurements")
@@ -324,6 +371,35 @@ def merge_readings(readings, source: str = "<readings>") -> Measurements:
                 v = np.array([r.value for r in rows])
                 ss[(p, q, inst)] += float(np.sum((v - v.mean()) ** 2))
                 dof[(p, q, inst)] += len(rows) - 1
+    # the finest rounding step written in each channel (0: unknown)
+    res = {}
+    for (p, q, inst, _), dirs in groups.items():
+        for rows in dirs.values():
+            for r in rows:
+                if r.resolution > 0:
+                    res[(p, q, inst)] = min(res.get((p, q, inst), math.inf), r.resolution)
+    scatter, floored = {}, set()
+    for ch in sorted(dof):
+        if dof[ch] < MIN_SCATTER_DOF:
+            continue
+        p, q, inst = ch
+        quantity = QUANTITIES[q]
+        s = math.sqrt(ss[ch] / dof[ch])
+        floor = max(res.get(ch, 0.0),
+                    SCATTER_FLOOR_FRACTION * DEFAULT_SIGMA[(inst, _kind(quantity))])
+        if s < floor:
+            floored.add(ch)
+            if notes is not None:
+                u = _user_unit(quantity)
+                notes.append(
+                    f"{source}: {quantity} at {names[p]} ({inst}): the runs' pooled scatter "
+                    f"{s * 1e6:.3g} {u} ({dof[ch]} degrees of freedom) is below the floor "
+                    f"{floor * 1e6:.3g} {u} (the larger of the readings' rounding and "
+                    f"{SCATTER_FLOOR_FRACTION:g} × the instrument's default σ): identical runs? "
+                    "σ of one reading set to the floor"
+                )
+            s = floor
+        scatter[ch] = s
     keys = sorted((k for k, d in groups.items() if d["forward"] or d["backward"]),
                   key=lambda k: (k[0], k[1], k[2], k[3]))
     cols = defaultdict(list)
@@ -354,20 +430,15 @@ def merge_readings(readings, source: str = "<readings>") -> Measurements:
                 if r.sigma is not None:
                     sig.append(r.sigma)
                     sources.add("column")
-                elif dof[ch] >= MIN_SCATTER_DOF:
-                    sig.append(math.sqrt(ss[ch] / dof[ch]))
-                    sources.add("scatter")
+                elif ch in scatter:
+                    sig.append(scatter[ch])
+                    sources.add("floor" if ch in floored else "scatter")
                 else:
-                    kind = "linear" if QUANTITIES[q] in LINEAR else "angular"
-                    sig.append(DEFAULT_SIGMA[(inst, kind)])
+                    sig.append(DEFAULT_SIGMA[(inst, _kind(QUANTITIES[q]))])
                     sources.add("default")
             var.append(float(np.sum(np.square(sig))) / n**2)
         value = float(np.mean(means))
-        sigma = math.sqrt(sum(var)) / len(var)
-        if not sigma > 0:  # a zero pooled scatter (identical runs): fall back to the default
-            kind = "linear" if QUANTITIES[q] in LINEAR else "angular"
-            sigma = DEFAULT_SIGMA[(inst, kind)] / math.sqrt(len(rows))
-            sources = {"default"}
+        sigma = math.sqrt(sum(var)) / len(var)  # > 0: every σ above is
         cols["position"].append(rows[0].position)
         cols["point"].append(p)
         cols["quantity"].append(q)
@@ -404,7 +475,7 @@ def read_measurements(path: str | os.PathLike, x0_mm: float = 0.0,
                       notes: list | None = None) -> Measurements:
     """Read, validate and merge a long measurement CSV (see the module docstring); SI units.
     Other layouts: :func:`diffguide.io.importers.read_any`."""
-    return merge_readings(read_readings(path, x0_mm, notes), source=os.fspath(path))
+    return merge_readings(read_readings(path, x0_mm, notes), source=os.fspath(path), notes=notes)
 
 
 def format_csv(rows: list[dict], columns: tuple[str, ...]) -> str:
