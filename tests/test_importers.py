@@ -187,3 +187,18 @@ def test_one_csv_reader_for_every_file(tmp_path):
         read_table(_write(tmp_path, "rail,s_mm,vertical_mu,horizontal_um\n"), cols)
     with pytest.raises(ValueError, match=r":2: field 's_mm': not a finite number"):
         number({"s_mm": "x"}, "s_mm", "f.csv", 2, "mm")
+
+
+@pytest.mark.parametrize(
+    "cells, column",
+    [("0;12", "run1_fwd"), ("0;0,5;-11", "run1_fwd_ref")],  # mm/m: ±10 mm/m allowed
+)
+def test_wide_implausible_reading_names_its_column(tmp_path, cells, column):
+    ref = ";run1_fwd_ref" if cells.count(";") == 2 else ""
+    text = f"point;P1\nx_mm;0\ny_mm;0\nquantity;EBX\nunit;mm/m\ntarget_mm;run1_fwd{ref}\n{cells}\n"
+    p = _write(tmp_path, text)
+    with pytest.raises(ValueError) as err:
+        read_any(p)
+    msg = str(err.value)
+    assert msg.startswith(f"{p}:7: column '{column}': not a plausible reading")
+    assert "(allowed -10 to 10 mm/m" in msg

@@ -329,3 +329,37 @@ def test_fit_with_an_identical_runs_channel_has_chi2_of_order_one(tmp_path):
     assert 0.5 < report["elastic"]["chi2_per_dof"] < 2.0
     # as good as the bundled data alone (0.2 µm; the README's table)
     assert report["truth"]["rms_error_um"]["elastic"]["all"] < 0.4
+
+
+@pytest.mark.parametrize("extra, row, field, allowed", [
+    ("", "0,P1,0,0,EBX,10001,um/m", "value", "-10000 to 10000 um/m"),
+    ("", "0,P1,0,0,EBX,-10.5,mrad", "value", "-10 to 10 mrad"),
+    # 10 mrad = 2062.65 arcsec
+    ("", "0,P1,0,0,EAX,2063,arcsec", "value", "-2062.65 to 2062.65 arcsec"),
+    ("", "0,P5,0,0,EXX,-10.001,mm", "value", "-10 to 10 mm"),
+    ("", "0,P5,0,0,EYX,1e6,um", "value", "-10000 to 10000 um"),
+    (",reference", "0,P1,0,0,EBX,1,um/m,-2e4", "reference", "-10000 to 10000 um/m"),
+], ids=lambda v: str(v)[:24])
+def test_implausible_values_are_refused(tmp_path, extra, row, field, allowed):
+    p = _write(tmp_path, f"{HEADER}{extra}\n{row}\n")
+    with pytest.raises(ValueError) as exc:
+        read_measurements(p)
+    msg = str(exc.value)
+    assert msg.startswith(f"{p}:2: field '{field}': not a plausible reading")
+    assert f"(allowed {allowed}" in msg and "\n" not in msg
+
+
+def test_values_at_the_plausibility_limit_are_read():
+    m = merge_readings(parse_readings(HEADER + "\n0,P1,0,0,EBX,10,mrad\n0,P5,0,0,EZX,-10000,um\n"))
+    assert sorted(m.value) == pytest.approx([-1e-2, 1e-2])
+
+
+def test_one_huge_value_among_normal_ones_is_refused_not_set_aside():
+    # 36 positions x 10 readings of a level; one reading 1e6 µm/m (a unit or export slip) — the
+    # outlier rule would set it aside; it is refused, naming its line
+    text = _outlier_text(np.random.default_rng(2), 36, 5, 4.0, set()).splitlines()
+    fields = text[123].split(",")
+    fields[5] = "1e6"
+    text[123] = ",".join(fields)
+    with pytest.raises(ValueError, match=r"^big\.csv:124: field 'value': not a plausible reading"):
+        parse_readings("\n".join(text) + "\n", "big.csv")

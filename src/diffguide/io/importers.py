@@ -224,6 +224,8 @@ def parse_wide(
                     .replace("field 'value'", f"column {header[k]!r}")
                     .replace("field 'position_mm'", f"column {header[0]!r}")
                 )
+                if kref is not None:
+                    what = what.replace("field 'reference'", f"column {header[kref]!r}")
                 raise ValueError(f"{name}:{number}: {what}") from None
     if not readings:
         raise ValueError(f"{name}:1: no readings in the wide file: {_EXPECTED}")

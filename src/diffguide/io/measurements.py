@@ -13,7 +13,8 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
 - ``quantity``: ``EXX``, ``EYX``, ``EZX`` (``µm``/``um``, ``mm``, ``nm``, ``in``) or ``EAX``,
   ``EBX``, ``ECX`` (``µm/m``/``um/m``, ``µrad``/``urad``, ``mrad``, ``mm/m``, ``arcsec``,
   ``arcmin``, ``deg``; case and spaces do not matter). ``value`` and ``sigma`` (> 0,
-  the standard uncertainty of *one reading*) are in ``unit``.
+  the standard uncertainty of *one reading*) are in ``unit``; ``value`` (and ``reference``) within
+  ±10000 µm for a linear error, ±10000 µm/m (10 mrad) for an angle (:data:`VALUE_LIMIT`).
 - ``run``: a label of the run (default: one run). ``direction``: ``forward``/``+``/``fwd``/
   ``positive`` or ``backward``/``reverse``/``-``/``bwd``/``negative`` (default: forward).
 - ``reference``: a differential level pair's reference level reading (in ``unit``): the reading
@@ -113,6 +114,11 @@ REQUIRED = ("position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit")
 OPTIONAL = ("sigma", "run", "direction", "instrument", "z_mm", "reference")
 _FORWARD = ("forward", "fwd", "f", "+", "+1", "1", "up", "positive", "pos")
 _BACKWARD = ("backward", "bwd", "b", "reverse", "rev", "r", "-", "-1", "down", "negative", "neg")
+#: Largest plausible |reading| (SI): 10 mrad = 10000 µm/m for an angle, 10 mm = 10000 µm for a
+#: linear error — far beyond any guideway's errors (a few to a few hundred µm, µm/m), and the
+#: limit ``simulate --rails`` puts on a rail's deviation (±10000 µm). A larger number is a unit or
+#: export mistake, not a reading: it is refused, not set aside as an outlier.
+VALUE_LIMIT = {"angular": 1e-2, "linear": 1e-2}
 #: Field separators recognised (the header line decides: tab, then ';', else ',').
 DELIMITERS = ("\t", ";", ",")
 
@@ -186,6 +192,19 @@ def unit_key(unit: str, units: dict) -> str:
     return unit
 
 
+def _plausible(row, field, unit, factor, quantity) -> float:
+    """``row[field]`` in SI, refused beyond ``±limit`` (:data:`VALUE_LIMIT`), the allowed range
+    said in the row's unit and in µm or µm/m."""
+    limit = VALUE_LIMIT[_kind(quantity)]
+    v = _number(row, field, unit) * factor
+    if abs(v) > limit:
+        _field_error(field, row[field].strip(), "not a plausible reading",
+                     f"-{limit / factor:.6g} to {limit / factor:.6g} {unit}, i.e. "
+                     f"±{limit * 1e6:g} {_user_unit(quantity)}: more is no guideway's error, "
+                     "check the unit")
+    return v
+
+
 def _parse_row(row: dict, line: int) -> Reading:
     position = _number(row, "position_mm", "mm") * 1e-3
     point = row["point"].strip()
@@ -202,10 +221,10 @@ def _parse_row(row: dict, line: int) -> Reading:
         allowed = ", ".join(u for u in units if "μ" not in u)
         _field_error("unit", unit, f"not a unit of {quantity}", allowed)
     factor = units[key]
-    value = _number(row, "value", unit) * factor
+    value = _plausible(row, "value", unit, factor, quantity)
     steps = [written_step(row["value"])]
     if (row.get("reference") or "").strip():  # differential pair: measuring minus reference
-        value -= _number(row, "reference", unit) * factor
+        value -= _plausible(row, "reference", unit, factor, quantity)
         steps.append(written_step(row["reference"]))
     resolution = math.sqrt(sum(q * q for q in steps) / 12) * factor if all(steps) else 0.0
     sigma = None
