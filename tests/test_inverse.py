@@ -216,6 +216,31 @@ def test_structure_estimated_on_bundled_like_data(case):
     _assert_within_rms(fit, mk, _determined_grid(fit, report), 0.10)
 
 
+@pytest.mark.parametrize("content", ["zero", "channel constants"])
+def test_data_without_content_leave_the_structure_to_the_prior(case, content):
+    """Every reading 0 (or each channel constant: nothing left once the channel zeros are
+    removed) says nothing on the structure: the profiled marginal likelihood would only see the
+    model's round-off (it put the table at 76 ± 0.8 mm, "determined"). The structure is the
+    prior's, value and σ, and everything reported is finite."""
+    _, machine, meas, _ = case
+    fam = _family(machine, meas)
+    chan = meas.channel_index()
+    values = (np.zeros(meas.n) if content == "zero"
+              else 1e-6 * (1.0 + chan) * (-1.0) ** chan)  # µm-sized, constant per channel
+    fit = fit_rails(fam, meas.with_values(values))
+    assert "no information" in fit.message
+    for name, v in fit.structure.items():
+        assert not v["determined"], name
+        assert v["value"] == pytest.approx(v["prior_value"], rel=1e-12)
+        assert v["sigma_log"] == pytest.approx(v["prior_sigma_log"], rel=1e-12)
+        assert np.isfinite(v["sigma"])
+    assert np.all(np.isfinite(fit.cov)) and np.all(np.isfinite(fit.coeffs))
+    assert np.isfinite(fit.chi2_dof) and fit.chi2_dof < 1e-6
+    assert np.abs(fit.coeffs).max() < 1e-12  # no rails either (m)
+    rep = identifiability(fit, machine)
+    assert np.isfinite(rep["regularisation"]["effective_parameters"])
+
+
 def test_fixed_lambda_and_bounded_effective_parameters(case):
     """``lam=`` is honoured (no NaN anywhere) and 0 <= edf <= unknowns for λ over 12 decades."""
     _, machine, meas, fit = case

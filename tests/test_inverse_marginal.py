@@ -5,7 +5,12 @@ density computed directly."""
 import numpy as np
 import pytest
 
-from diffguide.inverse.marginal import marginal_score, maximise_marginal
+from diffguide.inverse.marginal import (
+    NULL_TOL,
+    carries_information,
+    marginal_score,
+    maximise_marginal,
+)
 
 
 def test_newton_finds_a_quadratic_minimum_and_its_exact_covariance():
@@ -66,3 +71,33 @@ def test_marginal_score_is_the_gaussian_marginal_density_with_the_scale_profiled
     y1, y2 = rng.normal(size=N), 3 * rng.normal(size=N)
     got = marginal_score(J, y1, Om, N, lam) - marginal_score(J, y2, Om, N, lam)
     assert got == pytest.approx(direct(y1) - direct(y2), rel=1e-9)
+
+
+def test_the_score_sees_only_the_shape_of_the_data():
+    """``y → cy`` adds exactly ``N' log c²`` at every ``J`` (every structure): the profiled score
+    cannot tell data from round-off, which is why data with no content are caught before it."""
+    rng = np.random.default_rng(4)
+    N, n = 30, 6
+    y = rng.normal(size=N)
+    Om = np.eye(n) * 2.0
+    for J in (rng.normal(size=(N, n)), 0.1 * rng.normal(size=(N, n))):
+        for c in (1e-15, 1e-6, 1e9):
+            got = marginal_score(J, c * y, Om, N, 0.5) - marginal_score(J, y, Om, N, 0.5)
+            assert got == pytest.approx(N * np.log(c**2), rel=1e-9)
+
+
+def test_data_zero_to_round_off_carry_no_information():
+    """``‖y‖ ≤ NULL_TOL · max(√N', scale)``: exact zeros, round-off of µm-sized channel zeros
+    (whitened 1e7) and content below 1e-9 σ are no information; noise-free data with content well
+    below the stated σ, or data scaled by 1e-9 (σ overstated a billionfold), are."""
+    rng = np.random.default_rng(5)
+    N = 350
+    u = rng.normal(size=N)
+    u /= np.linalg.norm(u)
+    bound = NULL_TOL * np.sqrt(N)
+    assert not carries_information(np.zeros(N), N)
+    assert not carries_information(0.99 * bound * u, N)
+    assert carries_information(1.01 * bound * u, N)
+    assert not carries_information(1e-6 * u, N, scale=1e7 * np.sqrt(N))  # 1e7 − 1e7 round-off
+    assert carries_information(1e-3 * u, N)  # noise free, content 1e-3 σ: data
+    assert carries_information(np.array([np.nan, 1.0]), 2)  # left to the caller's checks

@@ -34,7 +34,10 @@ minimum of that objective — the joint mode of a scale-like parameter under a s
 biased (a structure that makes the data more sensitive to the rails lets smaller rails explain
 them) — but from the marginal likelihood, with the rails integrated out under their prior:
 ``q̂ = argmin −2 log p(y | q) + ‖q‖²``, Newton steps on central differences of the problem
-linearised in the rails (first at straight rails, then again at the fitted rails). At ``q̂`` the
+linearised in the rails (first at straight rails, then again at the fitted rails); data with no
+content (zero to round-off once the channel zeros and the lead are removed: all-zero readings,
+constant channels) leave ``q`` at its prior, value and σ, with a message
+(:func:`.marginal.carries_information`). At ``q̂`` the
 rails and lead minimise the objective above by Levenberg–Marquardt (:func:`_levenberg_marquardt`:
 one compiled linearisation — residual and ``jacfwd`` Jacobian through the implicit equilibria —
 per step, the damped normal equations solved in NumPy), started from the Gauss–Newton step. λ
@@ -78,7 +81,7 @@ from ..machine.equilibrium import Machine
 from ..machine.kinematics import joint_errors_traced
 from .basis import RailBasis, null_space_basis
 from .data import QUANTITIES, Measurements
-from .marginal import marginal_score, maximise_marginal
+from .marginal import carries_information, marginal_score, maximise_marginal
 from .structure import DETERMINED_RATIO, MachineFamily, StructurePriors
 from .weight import WeightChoice, choose_prior, fixed_weight, project_out
 
@@ -497,6 +500,23 @@ def fit_rails(
         objective in ``q``; λ is re-chosen afterwards and the stage repeated if it moved);
         returns ``x`` with ``q`` replaced, ``Cov q`` and a note."""
         used = int(np.sum(weights > 0))
+        # data with no content (zero readings, constant channels) say nothing on the
+        # structure: the prior, not the profiled score's round-off (:mod:`.marginal`)
+        y0 = -(r - J[:, ic] @ x[ic])
+        _, yp0, rank0 = project_out(J[:, n_theta + n_q:], J[:, :n_theta], y0)
+        w0 = weights / np.asarray(meas.sigma)
+        scale = (float(np.linalg.norm(w0 * np.asarray(meas.value))) + float(np.linalg.norm(r))
+                 + float(np.linalg.norm(J[:, ic] @ x[ic])))
+        if not carries_information(yp0, used - n_chan - rank0, scale):
+            _log.info("fit: the data are zero to round-off (|y| = %.3g): the structure is the "
+                      "prior's", float(np.linalg.norm(yp0)))
+            out = x.copy()
+            out[iq] = 0.0
+            return out, np.eye(n_q), {
+                "iterations": 0, "evaluations": 0, "at_bound": [False] * n_q,
+                "message": ("the data carry no information on it (zero to round-off once the "
+                            "channel zeros and the lead are removed): its value and σ are the "
+                            "prior's")}
         c0 = choose(J, r, x, weights, "ml")
         Om_fixed = Om_curv + c0.kappa * Om_amp
 

@@ -22,6 +22,21 @@ charges a structure for every direction in which it makes the data more sensitiv
 ``q`` has one or two components, so :func:`maximise_marginal` takes Newton steps on central
 differences; the curvature there gives the Laplace approximation of ``q``'s posterior,
 ``Cov q = 2 H⁻¹`` (``H`` the Hessian of the objective above, never below the prior's ``2I``).
+
+**Data with no content** (:func:`carries_information`). With the noise scale profiled out the
+score sees only the *shape* of ``y``: ``y → cy`` adds ``N' log c²`` whatever ``q`` (this is
+what makes the structure independent of the scale of the stated σ). Data that are zero — every
+reading 0, or each channel constant, so that nothing is left once the channel zeros and the lead
+are removed — have no shape: ``y`` is then the model's round-off, ``N' log Q`` follows that
+round-off (its differences between structures are of order ``N'``, unrelated to any data), and the
+minimum and its curvature are artefacts; seen: all-zero readings gave a 76 ± 0.8 mm table and a
+preload "determined by the data". Exactly zero data carry no information on the structure (with
+straight rails every structure explains them; the profiled likelihood is then unbounded, ŝ → 0,
+for every ``q``), so such data leave ``q`` at its prior with the prior's σ. "Zero" is judged to
+round-off: ``‖y‖ ≤`` :data:`NULL_TOL` ``·max(√N', scale)``, against the stated σ (whitened units:
+content below 1e-9 σ, which no instrument resolves, and which only a σ overstated a billionfold
+reaches) and against ``scale``, the size of the numbers ``y`` is computed from (the round-off of
+subtracting large channel zeros).
 """
 
 import logging
@@ -37,6 +52,21 @@ STEP = 0.3
 #: check and ends them.
 MAX_ITER = 6
 TOL = 0.1
+#: Data whose norm is below this fraction of ``max(√N', scale)`` are zero to round-off
+#: (:func:`carries_information`).
+NULL_TOL = 1e-9
+
+
+def carries_information(y, n_eff: int, scale: float = 0.0) -> bool:
+    """Whether the whitened data ``y`` (nuisance terms projected out, ``n_eff`` values) differ
+    from zero by more than round-off: ``‖y‖ > NULL_TOL · max(√n_eff, scale)``, ``scale`` the
+    size (whitened) of the numbers ``y`` was computed from. Where False the data carry no
+    information on the structure: the profiled score would only see their round-off (module
+    docstring). Non-finite data are left to the caller's checks (True)."""
+    norm = float(np.linalg.norm(np.asarray(y, float)))
+    if not np.isfinite(norm):
+        return True
+    return bool(norm > NULL_TOL * max(np.sqrt(max(n_eff, 1)), float(scale)))
 
 
 def marginal_score(J, y, Omega, n_eff: int, lam: float) -> float:
