@@ -202,3 +202,14 @@ def test_wide_implausible_reading_names_its_column(tmp_path, cells, column):
     msg = str(err.value)
     assert msg.startswith(f"{p}:7: column '{column}': not a plausible reading")
     assert "(allowed -10 to 10 mm/m" in msg
+
+
+def test_wide_repeated_target_row_is_noted(tmp_path):
+    text = ("point;P1\nx_mm;0\ny_mm;0\nquantity;EBX\nunit;µm/m\ntarget_mm;run1_fwd;run1_bwd\n"
+            "0;1;2\n10;3;4\n10;5;6\n")
+    notes = []
+    m = read_any(_write(tmp_path, text), x0_mm=0.0, notes=notes)
+    (note,) = [n for n in notes if "repeat" in n]
+    assert "2 reading(s) repeat" in note and "line(s) 9 (as 8): merged" in note
+    # target 10 mm: forward (3 + 5)/2, backward (4 + 6)/2
+    assert m.value[np.argmax(m.position)] == pytest.approx(4.5e-6)

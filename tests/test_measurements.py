@@ -363,3 +363,31 @@ def test_one_huge_value_among_normal_ones_is_refused_not_set_aside():
     text[123] = ",".join(fields)
     with pytest.raises(ValueError, match=r"^big\.csv:124: field 'value': not a plausible reading"):
         parse_readings("\n".join(text) + "\n", "big.csv")
+
+
+def test_repeated_readings_are_merged_with_a_note():
+    # lines 2-4: three runs at one position; line 5 repeats line 3 (run 2 forward); line 6 is
+    # another direction of that run (no repeat); line 7 repeats line 2, 0.0004 mm apart (the
+    # 1 µm grid the merge groups positions on)
+    text = (HEADER + ",run,direction\n"
+            "0,P1,0,0,EBX,1,um/m,1,forward\n0,P1,0,0,EBX,2,um/m,2,forward\n"
+            "0,P1,0,0,EBX,3,um/m,3,forward\n0,P1,0,0,EBX,5,um/m,2,forward\n"
+            "0,P1,0,0,EBX,4,um/m,2,backward\n0.0004,P1,0,0,EBX,7,um/m,1,+\n")
+    notes = []
+    m = merge_readings(parse_readings(text, "d.csv", notes=notes))
+    assert len(notes) == 1
+    assert notes[0].startswith("d.csv: 2 reading(s) repeat")
+    assert "line(s) 5 (as 3), 7 (as 2): merged" in notes[0]
+    # merged as further readings: forward mean (1+2+3+5+7)/5 = 3.6, backward 4
+    assert m.value[0] == pytest.approx(0.5 * (3.6 + 4) * 1e-6)
+    assert m.n_readings[0] == 6
+
+
+def test_repeat_note_names_the_first_ten_lines():
+    rows = [f"{k * 10},P1,0,0,EBX,1,um/m" for k in range(12)]
+    notes = []
+    parse_readings(HEADER + "\n" + "\n".join(rows + rows) + "\n", "d.csv", notes=notes)
+    assert notes[0].startswith("d.csv: 12 reading(s) repeat")
+    # header line 1, the first copy on lines 2-13, the second on 14-25
+    assert "14 (as 2), 15 (as 3)" in notes[0] and "23 (as 11) ...: merged" in notes[0]
+    assert "24 (as 12)" not in notes[0]

@@ -33,7 +33,8 @@ quantity, one instrument)::
   column ``run<k>_<dir>_ref`` is the *reference* reading of a differential level pair for that
   run and direction: the reading used is measuring − reference (a column without its partner is
   an error). Other columns (temperature, ...) are ignored with a note.
-- one row per target position; an empty cell is a missing reading.
+- one row per target position; an empty cell is a missing reading; a target repeated in a
+  block is merged as further readings, with a note.
 - ``target_mm`` is in **machine coordinates**: the table position is ``x = target − x0`` with
   ``x0`` the ``--x0-mm`` option, by default the middle of the measured targets (so the middle of
   the measured range is x = 0, the model's reference position). In the long layout
@@ -61,6 +62,7 @@ from .measurements import (
     _parse_row,
     _RowError,
     merge_readings,
+    note_repeats,
     parse_readings,
     read_text,
     sniff_delimiter,
@@ -229,6 +231,7 @@ def parse_wide(
                 raise ValueError(f"{name}:{number}: {what}") from None
     if not readings:
         raise ValueError(f"{name}:1: no readings in the wide file: {_EXPECTED}")
+    note_repeats(readings, name, notes)
     if x0_mm is None:
         pos = [r.position for r in readings]
         x0_mm = (min(pos) + max(pos)) / 2 * 1e3

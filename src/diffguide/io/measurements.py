@@ -15,7 +15,9 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
   ``arcmin``, ``deg``; case and spaces do not matter). ``value`` and ``sigma`` (> 0,
   the standard uncertainty of *one reading*) are in ``unit``; ``value`` (and ``reference``) within
   ±10000 µm for a linear error, ±10000 µm/m (10 mrad) for an angle (:data:`VALUE_LIMIT`).
-- ``run``: a label of the run (default: one run). ``direction``: ``forward``/``+``/``fwd``/
+- ``run``: a label of the run (default: one run); rows that repeat the position, point,
+  quantity, instrument, run and direction of an earlier row are merged as further readings and
+  named in a note (:func:`note_repeats`). ``direction``: ``forward``/``+``/``fwd``/
   ``positive`` or ``backward``/``reverse``/``-``/``bwd``/``negative`` (default: forward).
 - ``reference``: a differential level pair's reference level reading (in ``unit``): the reading
   used is ``value − reference`` (measuring minus reference level). Its noise is not added to
@@ -295,7 +297,35 @@ def parse_readings(text: str, name: str = "<text>", x0_mm: float = 0.0,
         readings.append(reading)
     if not readings:
         raise ValueError(f"{name}:{_header_line(text)}: no data rows after the header")
+    note_repeats(readings, name, notes)
     return tuple(readings)
+
+
+def note_repeats(readings, name: str, notes: list | None) -> None:
+    """A note in ``notes`` when readings repeat the position (to 1 µm), point, quantity,
+    instrument, run and direction of an earlier one — a row pasted twice, or runs not told apart
+    by a ``run`` label: they are merged as further readings of that run, which is what the
+    merge would do with distinct runs too, but it is said (the first 10 lines, each with the
+    line it repeats)."""
+    if notes is None:
+        return
+    first, pairs, count = {}, [], 0
+    for r in readings:
+        key = (round(r.position * 1e6), r.point, r.quantity, r.instrument, r.run, r.direction)
+        if key not in first:
+            first[key] = r.line
+            continue
+        count += 1
+        if (r.line, first[key]) not in pairs:
+            pairs.append((r.line, first[key]))
+    if count:
+        shown = ", ".join(f"{line} (as {was})" for line, was in pairs[:10])
+        more = " ..." if len(pairs) > 10 else ""
+        notes.append(
+            f"{name}: {count} reading(s) repeat the position, point, quantity, instrument, run "
+            f"and direction of an earlier one, on line(s) {shown}{more}: merged as further "
+            "readings (if they are separate runs, give each its own 'run' label)"
+        )
 
 
 def _header_line(text: str) -> int:
