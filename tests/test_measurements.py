@@ -391,3 +391,29 @@ def test_repeat_note_names_the_first_ten_lines():
     # header line 1, the first copy on lines 2-13, the second on 14-25
     assert "14 (as 2), 15 (as 3)" in notes[0] and "23 (as 11) ...: merged" in notes[0]
     assert "24 (as 12)" not in notes[0]
+
+
+@pytest.mark.parametrize("rows, line, what", [
+    # an empty cell in a paired channel: not a reference of 0
+    (["0,P1,0,0,EBX,5,um/m,1", "10,P1,0,0,EBX,5,um/m,", "20,P1,0,0,EBX,5,um/m,1"], 3,
+     "empty, but line 2 of the same channel has one"),
+    (["0,P1,0,0,EBX,5,um/m,", "10,P1,0,0,EBX,5,um/m,2"], 3,
+     "a reference reading, but line 2 of the same channel has none"),
+], ids=["empty", "late"])
+def test_reference_on_every_row_of_a_channel_or_none(tmp_path, rows, line, what):
+    p = _write(tmp_path, HEADER + ",reference\n" + "\n".join(rows) + "\n")
+    with pytest.raises(ValueError) as exc:
+        read_measurements(p)
+    msg = str(exc.value)
+    assert msg.startswith(f"{p}:{line}: field 'reference': {what} (EBX at P1, level; allowed")
+
+
+def test_reference_column_with_unpaired_channels():
+    # levels paired, the interferometer's cells empty (as the bundled semicolon example)
+    m = merge_readings(parse_readings(
+        HEADER + ",reference,instrument\n0,P1,0,0,EBX,5,um/m,1.5,level\n"
+        "0,P5,0,0,EBX,2,um/m,,interferometer\n10,P1,0,0,EBX,6,um/m,1,level\n"
+        "10,P5,0,0,EBX,3,um/m,,interferometer\n"))
+    got = {(m.point_names[p], round(x * 1e3)): v * 1e6
+           for p, x, v in zip(m.point, m.position, m.value)}
+    assert got == pytest.approx({("P1", 0): 3.5, ("P1", 10): 5.0, ("P5", 0): 2.0, ("P5", 10): 3.0})

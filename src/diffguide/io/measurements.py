@@ -20,8 +20,9 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
   named in a note (:func:`note_repeats`). ``direction``: ``forward``/``+``/``fwd``/
   ``positive`` or ``backward``/``reverse``/``-``/``bwd``/``negative`` (default: forward).
 - ``reference``: a differential level pair's reference level reading (in ``unit``): the reading
-  used is ``value − reference`` (measuring minus reference level). Its noise is not added to
-  the default σ: with enough runs the pooled scatter (step 3) includes it.
+  used is ``value − reference`` (measuring minus reference level); a channel has it on every
+  row or on none (an empty cell among paired rows is an error, not a reference of 0). Its noise
+  is not added to the default σ: with enough runs the pooled scatter (step 3) includes it.
 - any other column (temperature, ...) is ignored and reported as a note, unless its name is
   close to one of the above (a typo: an error).
 - ``instrument``: ``level`` or ``interferometer``. Default: ``level`` for roll and pitch
@@ -275,6 +276,7 @@ def parse_readings(text: str, name: str = "<text>", x0_mm: float = 0.0,
     """
     readings = []
     points: dict[str, tuple[tuple[float, float], int]] = {}
+    paired: dict[tuple[str, str, str], tuple[bool, int]] = {}  # channel: (reference?, line)
     header_line = None
     for number, row in iter_rows(text, name, REQUIRED, OPTIONAL, notes):
         header_line = header_line or number
@@ -294,11 +296,29 @@ def parse_readings(text: str, name: str = "<text>", x0_mm: float = 0.0,
                 f"({prev[0][0] * 1e3:g}, {prev[0][1] * 1e3:g}) mm on line {prev[1]} (allowed: "
                 "one location per point name)"
             )
+        if "reference" in row:
+            _check_pairing(row, reading, paired, name, number)
         readings.append(reading)
     if not readings:
         raise ValueError(f"{name}:{_header_line(text)}: no data rows after the header")
     note_repeats(readings, name, notes)
     return tuple(readings)
+
+
+def _check_pairing(row, reading, paired, name, number) -> None:
+    """A channel is a differential pair on every row or on none: an empty ``reference`` cell in
+    a paired channel would be read as a reference level at 0."""
+    has = bool(row["reference"].strip())
+    channel = (reading.point, reading.quantity, reading.instrument)
+    prev = paired.setdefault(channel, (has, number))
+    if prev[0] != has:
+        what = ("empty, but line {} of the same channel has one" if prev[0] else
+                "a reference reading, but line {} of the same channel has none").format(prev[1])
+        raise ValueError(
+            f"{name}:{number}: field 'reference': {what} ({reading.quantity} at {reading.point}, "
+            f"{reading.instrument}; allowed: a reference reading on every row of a channel — a "
+            "differential pair — or on none)"
+        )
 
 
 def note_repeats(readings, name: str, notes: list | None) -> None:
