@@ -62,7 +62,7 @@ def test_long_semicolon_decimal_comma_units_directions(tmp_path):
     )
     notes = []
     rs = import_readings(_write(tmp_path, text), x0_mm=1000.0, notes=notes)
-    assert [n for n in notes if "temp_c" in n]
+    assert [n for n in notes if "temp_C ignored" in n]  # as written
     assert math.isclose(rs[0].position, 0.5e-3)  # 1000.5 mm - x0
     assert rs[0].xy == (10e-3, -20.5e-3)
     assert (rs[0].value, rs[0].direction) == (pytest.approx(250e-9), "forward")
@@ -182,7 +182,7 @@ def test_one_csv_reader_for_every_file(tmp_path):
     p = _write(tmp_path, "# c\nRail;s_mm;vertical_um;horizontal_um;T_C\n1;-2,5;0,75;1;20,5\n")
     ((line, row),) = read_table(p, cols, notes=notes)
     assert line == 3 and number(row, "s_mm", str(p), line, "mm") == -2.5
-    assert number(row, "vertical_um", str(p), line, "µm") == 0.75 and "t_c" in notes[0]
+    assert number(row, "vertical_um", str(p), line, "µm") == 0.75 and "T_C ignored" in notes[0]
     with pytest.raises(ValueError, match=r":1: unknown column 'vertical_mu', did you mean"):
         read_table(_write(tmp_path, "rail,s_mm,vertical_mu,horizontal_um\n"), cols)
     with pytest.raises(ValueError, match=r":2: field 's_mm': not a finite number"):

@@ -417,3 +417,11 @@ def test_reference_column_with_unpaired_channels():
     got = {(m.point_names[p], round(x * 1e3)): v * 1e6
            for p, x, v in zip(m.point, m.position, m.value)}
     assert got == pytest.approx({("P1", 0): 3.5, ("P1", 10): 5.0, ("P5", 0): 2.0, ("P5", 10): 3.0})
+
+
+def test_ignored_and_unknown_columns_are_named_as_written(tmp_path):
+    notes = []
+    read_measurements(_write(tmp_path, HEADER + ",Temp_C\n0,P1,0,0,EBX,1,um/m,20.1\n"), notes=notes)
+    assert notes and "column(s) Temp_C ignored" in notes[0]
+    with pytest.raises(ValueError, match=r":1: unknown column 'Sigam', did you mean 'sigma'"):
+        read_measurements(_write(tmp_path, HEADER + ",Sigam\n"))

@@ -93,20 +93,21 @@ def iter_rows(
             continue
         if header is None:
             delimiter = sniff_delimiter(line)
-            header = [f.lower() for f in split_line(line, delimiter, name, number)]
+            written = split_line(line, delimiter, name, number)
+            header = [f.lower() for f in written]
             header_line = number
             ignored = []
-            for f in header:
+            for f, as_written in zip(header, written):
                 if f in allowed:
                     continue
                 close = difflib.get_close_matches(f, allowed, n=1, cutoff=0.75)
                 if close or not f:
                     hint = f", did you mean {close[0]!r}?" if close else ""
                     raise ValueError(
-                        f"{name}:{number}: unknown column {f!r}{hint} (allowed "
+                        f"{name}:{number}: unknown column {as_written!r}{hint} (allowed "
                         f"{', '.join(allowed)}; other columns are ignored)"
                     )
-                ignored.append(f)
+                ignored.append(as_written)  # named as the file writes it
             dup = sorted({f for f in header if header.count(f) > 1})
             if dup:
                 raise ValueError(f"{name}:{number}: duplicate column(s) {', '.join(dup)}")
