@@ -308,8 +308,11 @@ def test_cli_writes_the_plan_and_refuses_bad_input(tmp_path, capsys):
     sites = tmp_path / "sites.csv"
     sites.write_text("name,x_mm,y_mm\nA,0,0\nB,900,0\n")
     bad_grid = ["--grid", "0x3"]
+    conflict = tmp_path / "conflict.csv"
+    conflict.write_text("instrument,point,x_mm,y_mm\nlevel,P1,450,200\nlevel,P1,-450,200\n")
     for extra in (
         bad_grid,
+        ["--compare", str(conflict)],
         ["--levels", "-1"],
         ["--rail-rms-um", "0"],
         ["--compare", str(tmp_path / "missing.csv")],
@@ -323,3 +326,4 @@ def test_cli_writes_the_plan_and_refuses_bad_input(tmp_path, capsys):
         assert not dest.exists()
     err = capsys.readouterr().err
     assert "--grid" in err and "off the table" in err and "missing.csv" in err
+    assert "conflict.csv:3: field 'point': 'P1' is at (-450, 200) mm here but at (450, 200)" in err

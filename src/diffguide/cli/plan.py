@@ -215,7 +215,7 @@ def _compare(args, cfg, sites):
         rows.append(("interferometer", 0.0, 0.0))
         where = "bundled layout"
     else:
-        rows = []
+        rows, named = [], {}
         for line, row in _rows(args.compare, ("instrument", "x_mm", "y_mm"), ("point",)):
             kind = row["instrument"]
             if kind not in QUANTITY_CHOICES:
@@ -225,6 +225,14 @@ def _compare(args, cfg, sites):
                 )
             x, y = (_number(args.compare, line, row, k) for k in ("x_mm", "y_mm"))
             _on_table(row.get("point", "?"), x, y, cfg, f"{args.compare}:{line}")
+            if row.get("point"):
+                first = named.setdefault(row["point"], (line, x, y))
+                if abs(first[1] - x) > 1e-6 or abs(first[2] - y) > 1e-6:
+                    raise ValueError(
+                        f"{args.compare}:{line}: field 'point': {row['point']!r} is at "
+                        f"({x:g}, {y:g}) mm here but at ({first[1]:g}, {first[2]:g}) mm on line "
+                        f"{first[0]}; one name, one location"
+                    )
             rows.append((kind, x, y))
         where = args.compare
     out = []
