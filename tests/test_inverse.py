@@ -216,6 +216,21 @@ def test_structure_estimated_on_bundled_like_data(case):
     _assert_within_rms(fit, mk, _determined_grid(fit, report), 0.10)
 
 
+def test_the_fit_does_not_depend_on_the_scale_of_the_stated_sigma(case):
+    """Every σ stated 10⁹× too large changes χ² by 10⁻¹⁸ and nothing else: λ, the structure
+    and the rails are those of the fit with the σ as given (the LM stop is relative to the
+    χ² per datum; an absolute one stopped at the Gauss–Newton start, before the structure
+    moved: rails 0.55 µm off)."""
+    _, machine, meas, _ = case
+    fam = _family(machine, meas)
+    a = fit_rails(fam, meas)
+    b = fit_rails(fam, meas.with_values(meas.value, meas.sigma * 1e9))
+    assert b.steps == a.steps and b.converged
+    np.testing.assert_allclose(b.coeffs, a.coeffs, rtol=0, atol=1e-6 * np.abs(a.coeffs).max())
+    np.testing.assert_allclose(b.structure["thickness"]["value"],
+                               a.structure["thickness"]["value"], rtol=1e-6)
+
+
 @pytest.mark.parametrize("content", ["zero", "channel constants"])
 def test_data_without_content_leave_the_structure_to_the_prior(case, content):
     """Every reading 0 (or each channel constant: nothing left once the channel zeros are

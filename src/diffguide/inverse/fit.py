@@ -179,16 +179,24 @@ def _linearise_traced(v, prob: _Problem):
 _linearise = cached_program(eqx.filter_jit(_linearise_traced), "inverse.fit._linearise")
 
 
+#: Floor of the noise scale ``ŝ²`` (objective per datum) in Levenberg–Marquardt's stop rule.
+_SCALE_FLOOR = 1e-24
+
+
 def _levenberg_marquardt(x, r, J, pred, Jc, linearise, P, rtol, max_steps):
     """Minimise ``‖r(x)‖² + xᵀPx`` from ``x`` (with ``r``, ``J`` there) by Levenberg–Marquardt
     with Marquardt's diagonal scaling; one compiled linearisation per step (the model is nearly
     linear in µm-sized rail errors, so the Gauss–Newton step, μ = 0, is tried first).
 
     Stops when the Gauss–Newton decrement ``δᵀHδ`` (the χ² a full step would still gain) is below
-    ``rtol`` — a change of the objective far below 1 means nothing statistically.
+    ``rtol·ŝ²`` — a change of the objective far below the noise scale means nothing
+    statistically. ``ŝ²`` is the objective per datum at the start (≈ 1 when the stated σ are
+    right; with σ all stated 10⁹× too large it is 10⁻¹⁸, and the rule stays the same rule),
+    floored at :data:`_SCALE_FLOOR` (data that are zero to round-off stop at once).
     Returns ``(x, r, J, pred, Jc, converged, steps, reason)``.
     """
     cost = float(r @ r + x @ P @ x)
+    rtol = rtol * max(cost / max(len(r), 1), _SCALE_FLOOR)
     mu = 0.0
     for step in range(1, max_steps + 1):
         H = J.T @ J + P
@@ -403,8 +411,8 @@ def fit_rails(
         lam: regularisation weight; default chosen by ``criterion`` (:mod:`.weight`).
         criterion: ``"ml"`` (marginal likelihood) or ``"gcv"``.
         x_ref: reference position of the model (m); the result does not depend on it.
-        rtol: LM tolerance on the Gauss–Newton decrement (χ² units). max_steps: LM step limit
-            per pass.
+        rtol: LM tolerance on the Gauss–Newton decrement, relative to the χ² per datum.
+            max_steps: LM step limit per pass.
         method: ``"lm"`` (through the nonlinear model) or ``"linear"`` (linearised at straight
             rails and solved once: the classical linear inversion).
         reject_outliers: zero-weight merged values beyond :data:`OUTLIER_Z` and refit once.
