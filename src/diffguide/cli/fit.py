@@ -267,6 +267,8 @@ def _summary(fit, meas, seconds) -> dict:
                           "residual_user": float(fit.residual[i] * 1e6)}
                          for i in fit.outliers],
         "lead_error_term": bool(len(fit.lead)),
+        "alignment_slopes_um_per_m": {meas.channel_label(c): float(a * 1e6) for c, a in
+                                      zip(fit.alignment_channels, fit.alignment)},
         "knot_spacing_mm": fit.basis.spacing * 1e3, "coefficients_per_profile": fit.basis.n_coeffs,
         "s_range_mm": [fit.basis.start * 1e3, fit.basis.end * 1e3],
         "gauge": list(fit.gauge), "channels": channels, "fit_seconds": seconds,
@@ -445,6 +447,9 @@ def run(args) -> int:
             unit = "mm" if name == "thickness" else "% of C"
             say(args, f"  {name}: {val:.3g} ± {sd:.2g} {unit}"
                        + ("" if v["determined"] else " (not determined by the data: prior)"))
+        for c, a in zip(f.alignment_channels, f.alignment):
+            say(args, f"  alignment slope of {meas.channel_label(c)}: {a * 1e6:.3g} µm/m "
+                       "(fitted, as ISO 230-1 removes it)")
     elastic = fits[""]
     basis = elastic.basis
     s0 = np.ceil(basis.start * 1e3 / _S_STEP_MM - 1e-9) * _S_STEP_MM

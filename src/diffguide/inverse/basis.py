@@ -13,10 +13,11 @@ zero), so
   (4 modes);
 - a common slope ``a·s`` of both rails in one plane translates the table by ``a·x`` and tilts it
   by a constant ``a``: invisible to angular data, seen only as a linear trend in straightness
-  (EZX for the vertical, EYX for the horizontal plane; 2 modes when those are not measured).
+  (EZX for the vertical, EYX for the horizontal plane), which the fit gives to each straightness
+  channel's alignment slope (:func:`~.fit.fit_rails`): 2 modes.
 
 They are fixed explicitly by linear constraints on the profiles over the visited length: each
-profile has zero mean, and (when the plane's straightness is not measured) the two rails' mean
+profile has zero mean, and (where ``fix_slope``; the fit fixes both planes) the two rails' mean
 least-squares slopes sum to zero. The unknowns are ``c = Z θ`` with ``Z`` an orthonormal basis of
 the constraints' null space, so the fit is well posed and the profiles it reports are the
 representative with that gauge. To compare with a known truth, apply :meth:`RailBasis.gauge_fix`

@@ -10,13 +10,18 @@ regularised Levenberg–Marquardt through the differentiable machine model.
   (``q ~ N(0, 1)``);
 - ``ℓ``: the feed screw's lead error (µm), a cubic B-spline in the table position added to every
   EXX channel — the model has no lead error, and a positioning channel without this term would
-  bend the rails to explain it (:data:`LEAD_KNOT_SPACING`).
+  bend the rails to explain it (:data:`LEAD_KNOT_SPACING`) — and each straightness channel's
+  alignment slope ``a_c`` (µm/m): straightness optics read against a reference line (a laser
+  beam, a straightedge) that is never exactly parallel to the axis, and ISO 230-1 removes that
+  slope from every straightness curve; without the term it would tilt the rails. The rails'
+  common slope in each plane is then invisible and fixed by the gauge (:mod:`.basis`).
 
 **Residuals**, one per merged measurement ``i`` of channel ``c(i)`` (point, quantity,
 instrument):
 
 .. math::  r_i = w_i\bigl(m_i(x) - y_i - o_{c(i)}\bigr)/σ_i,\qquad
-           m_i = E_{q_i}(P_i) + z_i\,A_{q_i}(P_i) + [q_i = \mathrm{EXX}]\,ℓ(x_i),
+           m_i = E_{q_i}(P_i) + z_i\,A_{q_i}(P_i) + [q_i = \mathrm{EXX}]\,ℓ(x_i)
+                 + [q_i ∈ \{\mathrm{EYX}, \mathrm{EZX}\}]\,a_{c(i)}(x_i - \bar x_{c(i)}),
 
 ``E`` the model's joint errors (:func:`~diffguide.kinematics.joint_errors` of the machine at
 ``q``, every equilibrium differentiated implicitly), ``z_i`` the sensing point's height above
@@ -27,7 +32,8 @@ merged values rejected as outliers, below). The fit minimises
 .. math::  ‖r(x)‖² + λθᵀΩθ + ‖q‖² + ε²‖ℓ‖²,\qquad
            θᵀΩθ = Σ∫e''² ds + κ ℓ_r⁻⁴Σ∫e² ds
 
-(``ε`` = 1e-3 µm⁻¹ keeps the lead term proper; λ and κ chosen by the data, :mod:`.weight`).
+(``ℓ`` there stands for the lead coefficients and the alignment slopes; ``ε`` = 1e-3 µm⁻¹
+keeps them proper; λ and κ chosen by the data, :mod:`.weight`).
 
 **The structure by marginal likelihood** (:mod:`.marginal`). ``q`` is not taken from the joint
 minimum of that objective — the joint mode of a scale-like parameter under a shrinkage prior is
@@ -94,6 +100,7 @@ LEAD_RIDGE = 1e-3
 #: Standardised residual beyond which a merged value is an outlier.
 OUTLIER_Z = 5.0
 _EXX, _EYX = QUANTITIES.index("EXX"), QUANTITIES.index("EYX")
+_STRAIGHTNESS = (QUANTITIES.index("EYX"), QUANTITIES.index("EZX"))
 #: What a failed equilibrium raises inside the compiled model (equinox's runtime checks under
 #: ``EQX_ON_ERROR=raise``, the default outside the CLI; XLA's runtime error).
 _RUNTIME_ERRORS = (eqx.EquinoxRuntimeError, jax.errors.JaxRuntimeError)
@@ -243,7 +250,8 @@ class RailFit(eqx.Module):
         structure: per structural unknown ``{value, sigma, prior_value, prior_sigma,
             determined, at_bound}`` (thickness in m, preload as a fraction; σ of the value).
         lead: lead-error coefficients (m) and ``lead_basis`` ``(start, spacing, n)`` (m);
-            empty without EXX data.
+            empty without EXX data. alignment: each straightness channel's alignment slope
+            (rad), for the channels ``alignment_channels`` (indices into ``meas.channels``).
         fitted: model at every merged measurement, shifted by its channel zero (m or rad).
         residual: measured − fitted. offsets: each channel's zero (model − measured).
         outliers: merged rows given zero weight. chi2, dof, edf: χ² of the used rows, degrees
@@ -287,6 +295,8 @@ class RailFit(eqx.Module):
     Omega: np.ndarray
     rigid: bool = eqx.field(static=True)
     waviness: float = 0.0
+    alignment: np.ndarray = eqx.field(default_factory=lambda: np.zeros(0))
+    alignment_channels: tuple[int, ...] = eqx.field(static=True, default=())
 
     @property
     def chi2_dof(self) -> float:
@@ -360,6 +370,20 @@ def _lead_basis(meas: Measurements):
     B = np.zeros((meas.n, basis.n_coeffs))
     B[exx] = bspline_matrix(x, basis.start, basis.spacing, basis.n_coeffs)
     return B, (basis.start, basis.spacing, basis.n_coeffs)
+
+
+def _alignment_columns(meas: Measurements):
+    """One column per straightness channel (EYX, EZX): ``x − x̄_c`` (m) on its rows, 0 elsewhere,
+    so that its coefficient (µm) is the channel's alignment slope in µm/m; and the channels."""
+    chan = meas.channel_index()
+    straight = np.isin(np.asarray(meas.quantity), _STRAIGHTNESS)
+    cs = np.unique(chan[straight])
+    S = np.zeros((meas.n, len(cs)))
+    for k, c in enumerate(cs):
+        rows = chan == c
+        x = np.asarray(meas.position)[rows]
+        S[rows, k] = x - x.mean()
+    return S, tuple(int(c) for c in cs)
 
 
 def _problem(family: MachineFamily, meas: Measurements, basis: RailBasis, lead_B, x_ref):
@@ -443,13 +467,17 @@ def fit_rails(
         knot_spacing = base.carriage.length
     lo, hi = visited_range(base, meas.position)
     basis = RailBasis.covering(lo, hi, knot_spacing)
-    qs = {QUANTITIES[k] for k in np.unique(meas.quantity)}
-    fix_slope = ("EZX" not in qs, "EYX" not in qs)
+    # the common slope of both rails in a plane is invisible: pitch and yaw are relative to
+    # their reference position, and a straightness channel's slope is its alignment (fitted)
+    fix_slope = (True, True)
     C, gauge = basis.gauge_functionals(fix_slope)
     Z = null_space_basis(C, basis.size)
     G2, G0 = basis.penalty_factor() @ Z, basis.amplitude_factor() @ Z
     Om_curv, Om_amp = G2.T @ G2, G0.T @ G0
     lead_B, lead_basis = _lead_basis(meas)
+    align_S, align_chan = _alignment_columns(meas)
+    n_lead = lead_B.shape[1]
+    lead_B = np.hstack([lead_B, align_S])  # the nuisance columns: lead, then alignment slopes
     n_theta, n_q, n_l = Z.shape[1], family.n_params, lead_B.shape[1]
     n_x = n_theta + n_q + n_l
     prob = _problem(family, meas, basis, lead_B, x_ref)
@@ -672,7 +700,9 @@ def fit_rails(
     return RailFit(
         basis=basis, coeffs=(c_um * _UM).reshape(2, 2, basis.n_coeffs), cov=cov, Z=Z,
         gauge=tuple(gauge), fix_slope=fix_slope, lam=float(choice.lam), weight=choice,
-        structure=structure, lead=x[n_theta + n_q:] * _UM, lead_basis=lead_basis,
+        structure=structure, lead=x[n_theta + n_q:n_theta + n_q + n_lead] * _UM,
+        lead_basis=lead_basis, alignment=x[n_theta + n_q + n_lead:] * _UM,
+        alignment_channels=align_chan,
         fitted=fitted, residual=residual, offsets=offsets, outliers=outliers, chi2=chi2,
         dof=dof, edf=edf, sigma_scale=sigma_scale, converged=bool(converged), message=message,
         steps=steps, jacobian=J, jacobian_full=Jc, penalty=P, n_theta=n_theta,

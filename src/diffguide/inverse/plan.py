@@ -12,11 +12,12 @@ rails and the prior structure gives each candidate channel ``c`` (site, quantity
            \frac{∂E_c(x_1 … x_n)}{∂(θ, q)},\qquad σ_c = \frac{σ_{reading}}{\sqrt{runs ·
            directions}},
 
-with the channel's free zero projected out (the fit profiles each channel's zero out) and ``σ_c``
+with the channel's free zero projected out (the fit profiles each channel's zero out; for a
+straightness channel its alignment slope too, ``1`` then spanning ``1`` and ``x − x̄``) and ``σ_c``
 the merged σ :func:`diffguide.io.measurements.merge_readings` gives ``runs·directions`` readings of
 σ ``σ_reading`` each. ``θ`` are the gauge-fixed rail coefficients (µm, ``c = Zθ``, as in
-:func:`~.fit.fit_rails`: the common slope of a plane is fixed unless some candidate instrument
-reads that plane's straightness) and ``q`` the structural unknowns scaled by their prior σ.
+:func:`~.fit.fit_rails`: the common slope of both planes is fixed, as straightness channels
+carry a free alignment slope) and ``q`` the structural unknowns scaled by their prior σ.
 
 **The prior.** ``θ ~ N(0, (λΩ)⁻¹)``, ``Ω = Zᵀ(Ω_curv + Ω_amp)Z`` (:mod:`.basis`, ``κ = 1``), and
 ``q ~ N(0, I)``. λ is set from a physically stated expected RMS ``ρ`` (µm) of the four
@@ -337,7 +338,7 @@ class Planner:
         basis = RailBasis.covering(lo, hi, knot_spacing)
         self.basis = basis
         used = {q for i in self.instruments for q in i.quantities}
-        self.fix_slope = ("EZX" not in used, "EYX" not in used)
+        self.fix_slope = (True, True)  # as in fit_rails: straightness has a free slope
         C, self.gauge = basis.gauge_functionals(self.fix_slope)
         Z = null_space_basis(C, basis.size)
         self.Z = Z
@@ -448,12 +449,19 @@ class Planner:
         """Thin factors ``R_d`` (``RᵀR = J_dᵀJ_d``) of one placement at every draw, stacked
         ``(n_draws, r, n_x)`` (zero rows pad the ranks to one ``r``)."""
 
-        def centred(a):
-            return (a - a.mean(axis=0)) / sig
+        x = self.positions - self.positions.mean()
+        slope = x / np.linalg.norm(x)
 
-        Jt = np.vstack([centred(self._raw[(site, q)]) for q in inst.quantities])
+        def centred(a, q):
+            """The channel's zero (and a straightness channel's slope) projected out."""
+            a = a - a.mean(axis=0)
+            if q in ("EYX", "EZX"):
+                a = a - np.outer(slope, slope @ a)
+            return a / sig
+
+        Jt = np.vstack([centred(self._raw[(site, q)], q) for q in inst.quantities])
         D = [
-            np.vstack([centred(self._mixed[(site, q, k)]) for q in inst.quantities])
+            np.vstack([centred(self._mixed[(site, q, k)], q) for q in inst.quantities])
             for k in range(self.n_q)
         ]
         out = []
