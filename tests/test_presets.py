@@ -62,3 +62,23 @@ def test_table_paths_agree():
     relabelled = dataclasses.replace(b.plate.material, name=a.plate.material.name)
     b = eqx.tree_at(lambda t: t.plate.material, b, relabelled)
     assert_same_tree(a, b)
+
+
+def test_subpackages_are_attributes_of_a_fresh_import():
+    """``diffguide.presets.majda2012()`` works in a fresh session, whatever was touched before
+    (a subpackage is imported on first attribute access), and the structure classes are part of
+    the top-level API."""
+    import subprocess
+    import sys
+
+    code = (
+        "import diffguide, sys\n"
+        "assert 'jax' not in sys.modules\n"
+        "spec = diffguide.presets.majda2012()\n"
+        "assert type(spec).__name__ == 'MachineSpec'\n"
+        "assert diffguide.io.config.spec_from_config is not None\n"
+        "from diffguide import MachineFamily, Prior, StructurePriors\n"
+        "assert Prior(0.05, 0.025, 0.1).sigma_log > 0\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr

@@ -47,6 +47,9 @@ _LAZY = {
     "static_characteristics": ".guideway",
     "fit_rails": ".inverse",
     "identifiability": ".inverse",
+    "MachineFamily": ".inverse",
+    "Prior": ".inverse",
+    "StructurePriors": ".inverse",
     "plan": ".inverse.plan",
     "default_config": ".io",
     "load_config": ".io",
@@ -83,6 +86,9 @@ _LAZY = {
 }
 
 __all__ = list(_LAZY)
+#: the subpackages and modules, imported on first attribute access (``diffguide.presets``)
+_SUBMODULES = ("cli", "contact", "fe", "guideway", "inverse", "io", "machine", "plotting",
+               "presets", "studies")
 
 
 def __getattr__(name: str):
@@ -96,6 +102,8 @@ def __getattr__(name: str):
         globals()[name] = value
         _aliases.forget()  # the package's own imports of old names leave no trace for users
         return value
+    if name in _SUBMODULES:
+        return _import_module(f".{name}", __name__)
     old = f"{__name__}.{name}"
     if old in _aliases.MOVED:
         _aliases.deprecated(old, stacklevel=2)
@@ -104,4 +112,4 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(_LAZY) | set(_SUBMODULES))
