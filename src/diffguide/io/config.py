@@ -507,6 +507,10 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
     return cfg
 
 
+#: Two footprints closer than this (mm; the mesh's node tolerance, 1e-9 m) touch.
+_TOUCH_MM = 1e-6
+
+
 def _check_consistency(cfg: dict, source: str) -> None:
     t, g = cfg["table"], cfg["guideway"]
     half_l, half_w = t["length_mm"] / 2, t["width_mm"] / 2
@@ -519,6 +523,12 @@ def _check_consistency(cfg: dict, source: str) -> None:
             )
     if not g["rail_y_mm"][0] < g["rail_y_mm"][1]:
         raise ValueError(f"{source}: key 'guideway.rail_y_mm': rail 1 must be at the smaller Y")
+    if not g["rail_y_mm"][1] - g["rail_y_mm"][0] > fy + _TOUCH_MM:
+        raise ValueError(
+            f"{source}: key 'guideway.rail_y_mm': the two rails' carriages overlap; the rails "
+            f"must be more than one footprint ({fy:g} mm) apart (touching footprints share "
+            "mesh nodes)"
+        )
     xs = g["carriage_x_mm"]
     for x in xs:
         if abs(x) + fx / 2 > half_l:
@@ -526,11 +536,13 @@ def _check_consistency(cfg: dict, source: str) -> None:
                 f"{source}: key 'guideway.carriage_x_mm': {x:g} puts a carriage footprint off the "
                 f"table; allowed |x| <= {half_l - fx / 2:g} mm"
             )
-    if not xs[1] - xs[0] >= fx:
+    if not xs[1] - xs[0] > fx + _TOUCH_MM:
         raise ValueError(
-            f"{source}: key 'guideway.carriage_x_mm': the carriages overlap; they must be at "
-            f"least one footprint ({fx:g} mm) apart, first the smaller X"
+            f"{source}: key 'guideway.carriage_x_mm': the carriages overlap; they must be more "
+            f"than one footprint ({fx:g} mm) apart, first the smaller X (touching footprints "
+            "share mesh nodes)"
         )
+    _check_nut(cfg, source)
     for i, rib in enumerate(cfg["ribs"]):
         limit = half_w if rib["axis"] == "x" else half_l
         if abs(rib["position_mm"]) > limit:
@@ -549,6 +561,43 @@ def _check_consistency(cfg: dict, source: str) -> None:
             f"{source}: key 'screw.free_length_at_ref_mm': must exceed half the stroke "
             f"({cfg['machine']['stroke_mm'] / 2:g} mm), or the nut would pass the fixed bearing"
         )
+
+
+def _check_nut(cfg: dict, source: str) -> None:
+    """The screw nut's flange must lie on the table (its edges may reach the table's edges) and
+    must not touch or overlap a carriage's footprint (touching patches share mesh nodes).
+
+    The flange ``[screw] nut_footprint_mm`` (X, Y) is centred on ``nut_xy_mm``; both in mm,
+    the table ``length_mm`` (X) × ``width_mm`` (Y) is centred on the origin.
+    """
+    t, s = cfg["table"], cfg["screw"]
+    half_l, half_w = t["length_mm"] / 2, t["width_mm"] / 2
+    (x, y), (fx, fy) = s["nut_xy_mm"], s["nut_footprint_mm"]
+    if fx > t["length_mm"] or fy > t["width_mm"]:
+        raise ValueError(
+            f"{source}: key 'screw.nut_footprint_mm': ({fx:g}, {fy:g}) mm is larger than the "
+            f"table; allowed at most ({t['length_mm']:g}, {t['width_mm']:g}) mm "
+            "(table length_mm, width_mm)"
+        )
+    if abs(x) + fx / 2 > half_l or abs(y) + fy / 2 > half_w:
+        raise ValueError(
+            f"{source}: key 'screw.nut_xy_mm': ({x:g}, {y:g}) mm puts the nut footprint "
+            f"({fx:g} × {fy:g} mm) off the table; allowed |x| <= {half_l - fx / 2:g} mm, "
+            f"|y| <= {half_w - fy / 2:g} mm"
+        )
+    g = cfg["guideway"]
+    cx, cy = g["carriage_footprint_mm"]
+    for xc in g["carriage_x_mm"]:
+        for yc in g["rail_y_mm"]:
+            gap_x = abs(x - xc) - (fx + cx) / 2
+            gap_y = abs(y - yc) - (fy + cy) / 2
+            if gap_x <= _TOUCH_MM and gap_y <= _TOUCH_MM:
+                raise ValueError(
+                    f"{source}: key 'screw.nut_xy_mm': ({x:g}, {y:g}) mm puts the nut footprint "
+                    f"({fx:g} × {fy:g} mm) on the carriage at ({xc:g}, {yc:g}) mm "
+                    f"({cx:g} × {cy:g} mm); allowed: |x - {xc:g}| > {(fx + cx) / 2:g} mm or "
+                    f"|y - {yc:g}| > {(fy + cy) / 2:g} mm (footprints must not touch)"
+                )
 
 
 def load_config(path: str | os.PathLike) -> dict:
