@@ -63,6 +63,16 @@ BAD = [
     ("[guideway]\nrail_y_mm = [-170]", "key 'guideway.rail_y_mm': must be a list of two numbers"),
     ("[guideway]\nrail_y_mm = [-240, 240]", "puts a carriage footprint off the table"),
     ("[guideway]\ncarriage_x_mm = [-10, 10]", "the carriages overlap"),
+    ("[guideway]\ncarriage_x_mm = [-100, -40]", "the carriages overlap"),  # touching: 60 mm
+    ("[guideway]\nrail_y_mm = [-10, 10]", "the two rails' carriages overlap"),
+    # the nut's footprint off the table (default table 1000 × 500 mm, nut flange 50 × 50 mm)
+    ("[screw]\nnut_xy_mm = [2000.0, 0.0]", "key 'screw.nut_xy_mm': (2000, 0) mm puts the nut"),
+    ("[screw]\nnut_xy_mm = [0.0, 240.0]\nnut_footprint_mm = [200.0, 200.0]", "|y| <= 150 mm"),
+    ("[screw]\nnut_xy_mm = [476.0, 0.0]", "allowed |x| <= 475 mm"),
+    ("[screw]\nnut_footprint_mm = [50.0, 600.0]", "key 'screw.nut_footprint_mm'"),
+    # on a carriage (C at (160, 170) mm, 60 × 48 mm): touching shares mesh nodes
+    ("[screw]\nnut_xy_mm = [160.0, 170.0]", "on the carriage at (160, 170) mm"),
+    ("[screw]\nnut_xy_mm = [105.0, 170.0]", "footprints must not touch"),
     ("[points]\nP9 = [900, 0]", "key 'points.P9'"),
     ("[screw]\nfree_length_at_ref_mm = 100", "must exceed half the stroke"),
     ('[[ribs]]\naxis = "z"', "key 'ribs[1].axis'"),
@@ -88,6 +98,63 @@ def test_bad_config_gives_one_line_error_naming_file_and_key(tmp_path, capsys, t
     assert main(["simulate", "--config", str(path), "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+@pytest.mark.parametrize(
+    "xy, footprint",
+    [
+        ((0.0, 150.0), (200.0, 200.0)),  # y edge on the table's: 150 + 100 = 250 = 500 / 2
+        ((-475.0, -225.0), (50.0, 50.0)),  # corner: 475 + 25 = 500, 225 + 25 = 250
+        ((104.0, 170.0), (50.0, 50.0)),  # 1 mm clear of the carriage at (160, 170): 56 > 55
+    ],
+)
+def test_nut_at_the_edge_of_the_allowed_region_is_valid(tmp_path, xy, footprint):
+    path = tmp_path / "m.toml"
+    path.write_text(f"[screw]\nnut_xy_mm = {list(xy)}\nnut_footprint_mm = {list(footprint)}\n")
+    assert load_config(path)["screw"]["nut_xy_mm"] == xy
+
+
+def test_nut_on_the_table_edge_builds_and_simulates(tmp_path):
+    """The edge case the validation lets through also passes the finite-element patch checks
+    (one that it refuses fails there with 'outside the table' or 'overlaps another patch')."""
+    from diffguide.machine.build import table_from_spec
+
+    cfg = default_config()
+    cfg["table"]["mesh_nx"], cfg["table"]["mesh_ny"] = 10, 5
+    cfg["screw"]["nut_xy_mm"], cfg["screw"]["nut_footprint_mm"] = (0.0, 150.0), (200.0, 200.0)
+    path = tmp_path / "m.toml"
+    path.write_text(dump_config(cfg))
+    model = table_from_spec(spec_from_config(load_config(path)), nut=True)
+    nut = model.patches[-1]
+    assert (nut.y + nut.half_y, nut.half_x) == pytest.approx((0.25, 0.1))  # m, on the edge
+    out = tmp_path / "x.csv"
+    rc = main(["simulate", "--config", str(path), "--variant", "1", "--positions",
+               "-300:300:3", "--out", str(out), "--quiet"])
+    assert rc == 0 and out.exists()
+
+
+def test_stiffness_names_the_config_file_not_the_preset(tmp_path, capsys, monkeypatch):
+    """`stiffness --config F` says F in its console line and plot title, not 'majda2012'."""
+    import diffguide.plotting.guideway as pg
+
+    titles, plot = [], pg.plot_static_characteristic
+
+    def recording(curves, title="", **kw):
+        titles.append(title)
+        return plot(curves, title=title, **kw)
+
+    monkeypatch.setattr(pg, "plot_static_characteristic", recording)
+    path = tmp_path / "mine.toml"
+    path.write_text('[carriage]\narrangement = "O"\n')
+    args = ["stiffness", "--config", str(path), "--steps", "3", "--max-load", "2000"]
+    assert main([*args, "--out", str(tmp_path / "s.csv"), "--plot", str(tmp_path / "s.png")]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{path}: preload approach") and "majda2012" not in out
+    assert titles == [f"{path}: static characteristic"]
+    # without --config the preset still names it
+    assert main(["stiffness", "--preset", "roller25", "--steps", "3", "--max-load", "2000",
+                 "--out", str(tmp_path / "r.csv")]) == 0
+    assert capsys.readouterr().out.startswith("roller25: preload approach")
 
 
 def test_binary_and_missing_config_files(tmp_path):

@@ -61,6 +61,7 @@ def run(args) -> int:
         carriage = carriage_from_spec(spec_from_config(load_config(args.config)).carriage)
     else:
         carriage = carriage_for(args.preset)
+    label = args.config or args.preset  # what the console line and the plot title call it
     loads = np.linspace(0.0, args.max_load, args.steps)
     out = static_characteristics(carriage, loads)
     failed = [
@@ -81,7 +82,7 @@ def run(args) -> int:
     stiff = {n: loads[1] / d[1] for n, (_, d) in curves.items()}
     say = (lambda *a: None) if args.quiet else print
     say(
-        f"{args.preset}: preload approach g0 = {float(carriage.preload_approach) * 1e6:.3f} µm, "
+        f"{label}: preload approach g0 = {float(carriage.preload_approach) * 1e6:.3f} µm, "
         f"initial stiffness "
         + ", ".join(f"{n} {s:.0f} N/µm" for n, s in stiff.items())
         + f"; wrote {args.out}"
@@ -91,7 +92,7 @@ def run(args) -> int:
         from ..plotting.guideway import plot_static_characteristic
 
         fig = figure_of(
-            plot_static_characteristic(curves, title=f"{args.preset}: static characteristic")
+            plot_static_characteristic(curves, title=f"{label}: static characteristic")
         )
         atomic_savefig(fig, args.plot, dpi=120)
         say(f"wrote {args.plot}")
