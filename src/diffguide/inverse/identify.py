@@ -40,7 +40,14 @@ def _combo_profiles(plane, kind):
 
 
 def blind_wavelengths(machine, max_wavelength: float) -> dict:
-    """The rigid-table blind wavelengths (m) up to ``max_wavelength``."""
+    """The rigid-table blind wavelengths (m) up to ``max_wavelength`` (m).
+
+    Returns:
+        ``{"carriage_averaging_m": [n·p/m, m = 1..3], "carriage_spacing_m": l,
+        "pitch_yaw_mean_m": [l/k ...], "roll_difference_m": [2l/(2k+1) ...]}``, all in metres
+        (``n`` elements at pitch ``p`` per row, ``l`` the carriage spacing).
+        :func:`identifiability` reports the same values in mm under ``..._mm`` keys.
+    """
     xi = np.asarray(machine.carriage.xi, float)
     n = len(xi)
     p = (xi[-1] - xi[0]) / max(n - 1, 1)
@@ -180,8 +187,10 @@ def identifiability(fit, machine=None, *, n_wavelengths: int = 40, threshold: fl
         "threshold": threshold,
     }
     if machine is not None:
+        # blind_wavelengths() is in metres with '_m' keys; the report is in mm, keys and all
         report["rigid_table_blind_wavelengths_mm"] = {
-            k: (np.asarray(v) * 1e3).tolist() for k, v in blind_wavelengths(machine, 2 * L).items()
+            k.removesuffix("_m") + "_mm": (np.asarray(v) * 1e3).tolist()
+            for k, v in blind_wavelengths(machine, 2 * L).items()
         }
     return report
 
