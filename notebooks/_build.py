@@ -221,8 +221,8 @@ for combo in rep["wavelengths"]:
     print(f"{combo['combination']:40s} undetermined {min(bad):.0f}–{max(bad):.0f} mm" if bad
           else f"{combo['combination']:40s} all wavelengths determined")
 print("rigid-table blind wavelengths (mm): carriage averaging",
-      rep["rigid_table_blind_wavelengths_mm"]["carriage_averaging_m"],
-      "; pitch/yaw", [round(v) for v in rep["rigid_table_blind_wavelengths_mm"]["pitch_yaw_mean_m"][:4]])
+      rep["rigid_table_blind_wavelengths_mm"]["carriage_averaging_mm"],
+      "; pitch/yaw", [round(v) for v in rep["rigid_table_blind_wavelengths_mm"]["pitch_yaw_mean_mm"][:4]])
 sv = np.asarray(rep["singular_values"]["whitened_gauge_fixed"])
 fig, ax = plt.subplots(figsize=(6, 3))
 ax.semilogy(sv, ".")
