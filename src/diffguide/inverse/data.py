@@ -22,7 +22,7 @@ def default_instrument(quantity: str) -> str:
     return "level" if quantity in ("EAX", "EBX") else "interferometer"
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, repr=False)
 class Measurements:
     """Merged measurements: one row per (position, point, quantity), SI units.
 
@@ -78,6 +78,18 @@ class Measurements:
             raise ValueError("values and positions must be finite")
         if not np.all(np.asarray(self.sigma) > 0):
             raise ValueError("sigma must be > 0")
+
+    def __repr__(self) -> str:
+        """One line: rows, channels, distinct positions (range in mm), points, readings, source
+        (the arrays themselves are attributes; the full dataclass repr ran to ~800 kB)."""
+        pos = np.unique(np.asarray(self.position, float))
+        span = f"{pos[0] * 1e3:g}..{pos[-1] * 1e3:g} mm"
+        extra = f", rejected={len(self.rejected)}" if self.rejected else ""
+        return (
+            f"Measurements(rows={self.n}, channels={len(self.channels)}, "
+            f"positions={len(pos)} ({span}), points={self.point_names!r}, "
+            f"readings={len(self.readings)}{extra}, source={self.source!r})"
+        )
 
     @property
     def n(self) -> int:

@@ -308,9 +308,21 @@ class RailFit(eqx.Module):
         return self.weight.score
 
     def profiles(self, s) -> tuple[np.ndarray, np.ndarray]:
-        """Profiles and their posterior σ at ``s`` (m): two ``(2 rails, 2 planes, len(s))``
-        arrays (m); ``σ² = bᵀ Cov b + waviness²`` (``b`` the basis functions at ``s``)."""
-        B = self.basis.matrix(s)
+        """Profiles and their posterior σ at ``s`` (m): two arrays (m) of shape
+        ``(2 rails, 2 planes) + np.shape(s)``, i.e. ``(2, 2, len(s))`` for 1-D ``s`` and
+        ``(2, 2)`` for a scalar; planes ``(vertical, horizontal)``.
+        ``σ² = bᵀ Cov b + waviness²`` (``b`` the basis functions at ``s``).
+
+        ``s`` must be finite (``ValueError`` otherwise) and a scalar or 1-D. Outside the fitted
+        range ``[basis.start, basis.end]`` the end segments' cubics are continued (an
+        extrapolation the data do not support)."""
+        s = np.asarray(s, dtype=float)
+        if s.ndim > 1:
+            raise ValueError(f"s must be a scalar or a 1-D array (m), got shape {s.shape}")
+        if not np.all(np.isfinite(s)):
+            raise ValueError(f"s must be finite (m); it holds {s[~np.isfinite(s)][:3]}")
+        shape = s.shape
+        B = self.basis.matrix(np.atleast_1d(s))
         n = self.basis.n_coeffs
         val = np.einsum("sk,rpk->rps", B, self.coeffs)
         sig = np.zeros_like(val)
@@ -319,7 +331,7 @@ class RailFit(eqx.Module):
             C = self.cov[k * n:(k + 1) * n, k * n:(k + 1) * n]
             sig[r, p] = np.sqrt(np.maximum(np.einsum("sk,kl,sl->s", B, C, B), 0.0)
                                 + self.waviness**2)
-        return val, sig
+        return val.reshape((2, 2) + shape), sig.reshape((2, 2) + shape)
 
     def rails(self) -> tuple[SplineRail, SplineRail]:
         """The fitted profiles as :class:`~diffguide.rails.SplineRail` (rail 1, rail 2)."""
@@ -330,13 +342,16 @@ class RailFit(eqx.Module):
     def to_dataframe(self, s=None):
         """The profiles as a ``pandas.DataFrame`` in user units, the columns of ``rails.csv``:
         ``rail, s_mm, vertical_um, vertical_sigma_um, horizontal_um, horizontal_sigma_um`` at
-        ``s`` (m; default every 2 mm over the fitted range). Needs the ``[pandas]`` extra."""
+        ``s`` (m; a scalar or 1-D, finite; default every 2 mm over the fitted range): one row
+        per rail and ``s`` (a scalar ``s`` gives two rows). Needs the ``[pandas]`` extra."""
         from .._core.frames import require_pandas
 
         pd = require_pandas()
         if s is None:
             s = np.arange(self.basis.start, self.basis.end + 1e-12, 2e-3)
         s = np.asarray(s, dtype=float)
+        if s.ndim == 0:
+            s = s[None]
         val, sig = self.profiles(s)
         parts = []
         for r in range(2):

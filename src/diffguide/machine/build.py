@@ -64,7 +64,10 @@ def with_overrides(
     points: dict[str, tuple[float, float]] | None = None,
 ) -> MachineSpec:
     """``spec`` with the given fields replaced (``None``: kept); SI units. The array fields
-    (thickness, E, preload fraction, carriage spacing) may be traced."""
+    (thickness, E, preload fraction, carriage spacing) may be traced; ``nx``, ``ny`` and the
+    control ``points`` ``{name: (x, y)}`` (m) may not: they fix the mesh (a point puts grid
+    lines through itself), so a traced point coordinate fails in :func:`build_machine` with
+    JAX's ``ConcretizationTypeError``."""
     if thickness is not None:
         spec = eqx.tree_at(lambda m: m.table.thickness, spec, thickness)
     if E is not None:
@@ -138,9 +141,14 @@ def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
             (deprecated).
         overrides: ``thickness``, ``E``, ``preload_fraction``, ``carriage_spacing``, ``nx``,
             ``ny``, ``points``: shorthands for replacing those fields of ``spec``
-            (:func:`with_overrides`; SI, may be traced). ``carriage_spacing`` keeps the mesh
-            topology with the footprint lines moved (module docstring), valid while no footprint
-            line passes another grid line (checked).
+            (:func:`with_overrides`; SI). ``thickness``, ``E``, ``preload_fraction`` and
+            ``carriage_spacing`` may be traced (differentiated); ``nx``, ``ny`` and ``points``
+            (control points ``{name: (x, y)}``, m) must be concrete: they set the mesh lines, so
+            a point's position is not differentiable (a traced coordinate fails with JAX's
+            ``ConcretizationTypeError``; use a finite difference over rebuilt machines, or
+            :func:`~diffguide.machine.kinematics.error_field` for the errors at every node).
+            ``carriage_spacing`` keeps the mesh topology with the footprint lines moved (module
+            docstring), valid while no footprint line passes another grid line (checked).
     """
     if spec is None:
         from ..presets import majda2012

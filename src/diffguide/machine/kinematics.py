@@ -11,12 +11,15 @@ straightness (m inside, µm at the edges); EAX roll, EBX pitch, ECX yaw (rad ins
 at the edges), each positive along/about +X, +Y, +Z (right-handed).
 """
 
+import operator
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from .._core.checks import concrete
 from .._core.rigid import transfer
 from .._core.types import Array, Float
 from ..guideway.rails import AbstractRailProfile
@@ -100,6 +103,39 @@ class JointErrors(eqx.Module):
         return self.errors[:, self.point_names.index(point), ERROR_NAMES.index(name)]
 
 
+def _check_sweep_inputs(rails, positions, x_ref) -> None:
+    """Refuse a single rail and positions / ``x_ref`` of the wrong rank with a clear message.
+
+    Only types and shapes are looked at (static under ``jit``/``vmap``/``grad``): the checks run
+    once, when the function is traced, and cost nothing in the compiled program."""
+    if isinstance(rails, AbstractRailProfile):
+        raise TypeError(
+            "rails must be a pair (rail 1, rail 2) of rail profiles, got a single "
+            f"{type(rails).__name__}; e.g. (rail, diffguide.StraightRail())"
+        )
+    try:
+        n_rails = len(rails)
+    except TypeError:
+        raise TypeError(
+            f"rails must be a pair (rail 1, rail 2) of rail profiles, got {type(rails).__name__}"
+        ) from None
+    if n_rails != 2:
+        raise ValueError(f"rails must be a pair (rail 1, rail 2), got {n_rails} profiles")
+    for k, rail in enumerate(rails):
+        if not callable(rail):
+            raise TypeError(
+                f"rails[{k}] must be a rail profile (callable s -> (e_y, e_z), e.g. "
+                f"diffguide.StraightRail()), got {type(rail).__name__}"
+            )
+    if np.ndim(positions) > 1:
+        raise ValueError(
+            "positions must be a scalar or a 1-D array of table positions (m), "
+            f"got shape {np.shape(positions)}"
+        )
+    if np.ndim(x_ref) != 0:
+        raise ValueError(f"x_ref must be a scalar (m), got shape {np.shape(x_ref)}")
+
+
 def joint_errors_traced(
     machine: Machine,
     rails: tuple[AbstractRailProfile, AbstractRailProfile],
@@ -113,14 +149,17 @@ def joint_errors_traced(
 
     Arguments:
         machine: the machine (``machine.with_rigid_table()`` for the rigid-table comparison).
-        rails: error profiles of rail 1 and rail 2.
-        positions: table positions (m). x_ref: reference position (m).
+        rails: error profiles of rail 1 and rail 2, a pair (a single profile is refused:
+            ``TypeError``).
+        positions: table positions (m), a scalar or 1-D (2-D is refused: ``ValueError``).
+        x_ref: reference position (m), a scalar.
         throw: raise (``eqx.error_if``) when any position (or the reference) fails, instead of
             only reporting it in ``result``.
         condensed: the equilibrium's Newton solve on the contact DOF (``True``: the faster
             run) or on all 30 interface DOF (``False``: the smaller program, for a traced
             function compiled to run a few times); the same result (:func:`equilibrium`).
     """
+    _check_sweep_inputs(rails, positions, x_ref)
     positions = jnp.atleast_1d(jnp.asarray(positions, dtype=float))
     x_ref = jnp.asarray(x_ref, dtype=float)
     state = equilibrium_traced(
@@ -158,12 +197,33 @@ def error_field(machine: Machine, errors: JointErrors, index: int):
     from the mid-surface; rotation of the surface) at that position, minus the same at the
     reference position — the error field a plot of the table shows.
 
+    Arguments:
+        machine: the machine ``errors`` was computed with.
+        errors: a sweep (:func:`joint_errors`).
+        index: which position of the sweep, an integer in ``-n_pos .. n_pos − 1`` (negative
+            counts from the end, as in Python); anything else raises ``IndexError`` (a float:
+            ``TypeError``). A traced index is not checked (JAX would clamp it).
+
     Returns:
         ``(xy, field)``: node positions on the table (m), ``(n_nodes, 2)``, and their errors
         ``(n_nodes, 6)`` (m, rad), ordered as :data:`ERROR_NAMES`.
     """
     from .equilibrium import node_motion
 
+    if concrete(index):
+        n_pos = int(np.shape(errors.interface)[0])
+        try:
+            k = operator.index(index)
+        except TypeError:
+            raise TypeError(
+                f"index must be an integer (a position of the sweep), got {index!r}"
+            ) from None
+        if not -n_pos <= k < n_pos:
+            raise IndexError(
+                f"index must be in -{n_pos} .. {n_pos - 1} (the sweep has {n_pos} positions), "
+                f"got {k}"
+            )
+        index = k
     half_t = -machine.table.ref_points[0, 2]  # the carriage patches sit on the underside
     offset = jnp.array([0.0, 0.0, 1.0]) * half_t
 

@@ -48,6 +48,11 @@ def majda2012_machine(
         law: carriage contact law, ``"hertz"`` or ``"rivin"``.
         preload_fraction: preload as a fraction of C (default 0.08); may be traced.
         points: control points ``{name: (x, y)}`` on the table top (m), default P1–P5.
+            Concrete numbers only: each point puts mesh lines through itself (the mesh is
+            static), so a point is not differentiable — a traced coordinate (``jax.grad``,
+            ``jacfwd``, ``vmap`` over it) fails with JAX's ``ConcretizationTypeError``. For the
+            effect of moving a point use :func:`~diffguide.machine.kinematics.error_field`
+            (errors at every node of one mesh) or a finite difference over rebuilt machines.
     """
     if law not in ("hertz", "rivin"):
         raise ValueError(f"law must be 'hertz' or 'rivin', got {law!r}")
@@ -91,6 +96,7 @@ def majda2012_table(
         thickness: plate thickness in m (default 0.05, the preset's equivalent thickness).
         material: plate material (default: the preset's cast iron, E 110 GPa, ν 0.26).
         points: control points ``{name: (x, y)}`` on the top surface (m); default P1..P5.
+            Concrete numbers only (they set mesh lines; see :func:`majda2012_machine`).
     """
     spec = with_overrides(presets.majda2012(), thickness=thickness, nx=nx, ny=ny, points=points)
     if material is not None:

@@ -7,10 +7,14 @@ mean roll at that position,
 .. math::  D = \sqrt{\frac{1}{N C}\sum_i\sum_c \bigl(E_{AX,c}(x_i) - \bar E_{AX}(x_i)\bigr)^2}.
 
 A rigid table gives ``D = 0`` (every point rolls alike); the elastic table's ``D`` is the roll a
-level at one corner cannot see at the others. ``D`` is smooth in everything the model
-is smooth in, so ``jax.grad``/``jax.jvp`` through :func:`diffguide.build_machine` and
+level at one corner cannot see at the others. Where ``D > 0``, ``D`` is smooth in everything
+the model is smooth in, so ``jax.grad``/``jax.jvp`` through :func:`diffguide.build_machine` and
 :func:`diffguide.joint_errors` give its derivatives (implicit differentiation of the
-equilibrium).
+equilibrium). At ``D = 0`` — perfect rails, or any rigid-table machine — ``D`` is a norm at its
+zero, like ``|a|`` (the spread grows in proportion to the rail error whichever its sign), so it
+has no derivative there, and ``jax.grad``/``jacfwd`` return NaN (the square root's slope at 0
+times a zero). To differentiate about such a point use the mean square
+``roll_spread(roll, squared=True)`` (``D²``, µrad²): smooth everywhere, gradient 0 at ``D = 0``.
 
 *Influence map* — the roll at each corner and table position caused by a unit bump on a rail:
 ``∂E_AX,c(x_i)/∂c_k`` for the B-spline coefficients ``c_k`` of a
@@ -43,11 +47,15 @@ def corner_roll(errors: JointErrors, points: Sequence[str] = CORNERS) -> Float[A
     return errors.errors[:, idx, _EAX]
 
 
-def roll_spread(roll: Float[Array, "n_pos c"]) -> Float[Array, ""]:
-    """Roll spread ``D`` (module docstring) of corner rolls ``roll`` (rad), in µrad."""
+def roll_spread(roll: Float[Array, "n_pos c"], *, squared: bool = False) -> Float[Array, ""]:
+    """Roll spread ``D`` (module docstring) of corner rolls ``roll`` (rad), in µrad.
+
+    With ``squared`` the mean square ``D²`` (µrad²), which unlike ``D`` is differentiable at
+    ``D = 0`` (where ``jax.grad`` of ``D`` is NaN: module docstring)."""
     roll = jnp.asarray(roll) * 1e6
     dev = roll - jnp.mean(roll, axis=1, keepdims=True)
-    return jnp.sqrt(jnp.mean(dev**2))
+    msq = jnp.mean(dev**2)
+    return msq if squared else jnp.sqrt(msq)
 
 
 def spline_rails(
