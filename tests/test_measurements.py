@@ -68,6 +68,8 @@ def test_bad_row_names_file_line_field(tmp_path, row, field, allowed):
 
 @pytest.mark.parametrize("extra, row, field", [
     (",sigma", "0,P1,0,0,EBX,1,um/m,-1", "sigma"),
+    (",sigma", "0,P1,0,0,EBX,1,um/m,1e9", "sigma"),  # beyond the readings' 10 mrad limit
+    (",sigma", "0,P1,0,0,EZX,1,mm,10.5", "sigma"),
     (",direction", "0,P1,0,0,EBX,1,um/m,sideways", "direction"),
     (",instrument", "0,P1,0,0,EBX,1,um/m,theodolite", "instrument"),
     (",instrument", "0,P1,0,0,ECX,1,um/m,level", "instrument"),
@@ -352,6 +354,9 @@ def test_implausible_values_are_refused(tmp_path, extra, row, field, allowed):
 def test_values_at_the_plausibility_limit_are_read():
     m = merge_readings(parse_readings(HEADER + "\n0,P1,0,0,EBX,10,mrad\n0,P5,0,0,EZX,-10000,um\n"))
     assert sorted(m.value) == pytest.approx([-1e-2, 1e-2])
+    # a stated σ at the same limit is read (one reading: the merged σ is the stated one)
+    m = merge_readings(parse_readings(HEADER + ",sigma\n0,P1,0,0,EBX,1,um/m,10000\n"))
+    assert m.sigma == pytest.approx([1e-2])
 
 
 def test_one_huge_value_among_normal_ones_is_refused_not_set_aside():

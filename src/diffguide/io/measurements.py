@@ -14,7 +14,8 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
   ``EBX``, ``ECX`` (``µm/m``/``um/m``, ``µrad``/``urad``, ``mrad``, ``mm/m``, ``arcsec``,
   ``arcmin``, ``deg``; case and spaces do not matter). ``value`` and ``sigma`` (> 0,
   the standard uncertainty of *one reading*) are in ``unit``; ``value`` (and ``reference``) within
-  ±10000 µm for a linear error, ±10000 µm/m (10 mrad) for an angle (:data:`VALUE_LIMIT`).
+  ±10000 µm for a linear error, ±10000 µm/m (10 mrad) for an angle (:data:`VALUE_LIMIT`); a
+  stated ``sigma`` must be > 0 and within the same limit.
 - ``run``: a label of the run (default: one run); rows that repeat the position, point,
   quantity, instrument, run and direction of an earlier row are merged as further readings and
   named in a note (:func:`note_repeats`). ``direction``: ``forward``/``+``/``fwd``/
@@ -233,8 +234,11 @@ def _parse_row(row: dict, line: int) -> Reading:
     sigma = None
     if (row.get("sigma") or "").strip():
         sigma = _number(row, "sigma", unit) * factor
-        if not sigma > 0:
-            _field_error("sigma", row["sigma"], "must be > 0", f"a positive number in {unit}")
+        limit = VALUE_LIMIT[_kind(quantity)]
+        if not 0 < sigma <= limit:
+            _field_error("sigma", row["sigma"].strip(), "not a plausible σ",
+                         f"> 0 and up to {limit / factor:.6g} {unit}, i.e. "
+                         f"{limit * 1e6:g} {_user_unit(quantity)}, the readings' own limit")
     run = (row.get("run") or "").strip() or "1"
     d = (row.get("direction") or "").strip().lower() or "forward"
     if d in _FORWARD:
