@@ -135,14 +135,14 @@ def test_roll_spread_gradient_through_the_model(machine):
     assert float(jax.grad(lambda a: D(a, squared=True))(0.0)) == 0.0
 
 
-# --- points are static (documented) ------------------------------------------------------------
+# --- points are static: a traced point is refused ---------------------------------------------
 
 
 def test_point_position_is_not_differentiable_as_documented():
     def f(px):
         return majda2012_machine(nx=10, ny=6, points={"Q": (px, 0.1)}).points_xy[0, 0]
 
-    with pytest.raises(jax.errors.ConcretizationTypeError):
+    with pytest.raises(TypeError, match="control point 'Q' is traced"):
         jax.jacfwd(f)(0.2)
     assert "not differentiable" in majda2012_machine.__doc__
 

@@ -21,6 +21,7 @@ import warnings
 from collections.abc import Mapping
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -66,8 +67,7 @@ def with_overrides(
     """``spec`` with the given fields replaced (``None``: kept); SI units. The array fields
     (thickness, E, preload fraction, carriage spacing) may be traced; ``nx``, ``ny`` and the
     control ``points`` ``{name: (x, y)}`` (m) may not: they fix the mesh (a point puts grid
-    lines through itself), so a traced point coordinate fails in :func:`build_machine` with
-    JAX's ``ConcretizationTypeError``."""
+    lines through itself), so a traced point coordinate is refused (``TypeError``)."""
     if thickness is not None:
         spec = eqx.tree_at(lambda m: m.table.thickness, spec, thickness)
     if E is not None:
@@ -89,6 +89,14 @@ def with_overrides(
         )
         spec = eqx.tree_at(lambda m: m.table, spec, table)
     if points is not None:
+        traced = [n for n, xy in dict(points).items()
+                  if any(isinstance(v, jax.core.Tracer) for v in jax.tree_util.tree_leaves(xy))]
+        if traced:
+            raise TypeError(
+                f"control point {traced[0]!r} is traced (jax.grad/jacfwd/vmap over its "
+                "position): points set the mesh lines and must be concrete numbers; for the "
+                "effect of moving a point use error_field (the errors at every node) or a "
+                "finite difference over rebuilt machines")
         spec = dataclasses.replace(spec, points=points)
     return spec
 
@@ -144,8 +152,8 @@ def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
             (:func:`with_overrides`; SI). ``thickness``, ``E``, ``preload_fraction`` and
             ``carriage_spacing`` may be traced (differentiated); ``nx``, ``ny`` and ``points``
             (control points ``{name: (x, y)}``, m) must be concrete: they set the mesh lines, so
-            a point's position is not differentiable (a traced coordinate fails with JAX's
-            ``ConcretizationTypeError``; use a finite difference over rebuilt machines, or
+            a point's position is not differentiable (a traced coordinate is refused,
+            ``TypeError``; use a finite difference over rebuilt machines, or
             :func:`~diffguide.machine.kinematics.error_field` for the errors at every node).
             ``carriage_spacing`` keeps the mesh topology with the footprint lines moved (module
             docstring), valid while no footprint line passes another grid line (checked).

@@ -50,7 +50,7 @@ def majda2012_machine(
         points: control points ``{name: (x, y)}`` on the table top (m), default P1–P5.
             Concrete numbers only: each point puts mesh lines through itself (the mesh is
             static), so a point is not differentiable — a traced coordinate (``jax.grad``,
-            ``jacfwd``, ``vmap`` over it) fails with JAX's ``ConcretizationTypeError``. For the
+            ``jacfwd``, ``vmap`` over it) is refused with a ``TypeError``. For the
             effect of moving a point use :func:`~diffguide.machine.kinematics.error_field`
             (errors at every node of one mesh) or a finite difference over rebuilt machines.
     """
