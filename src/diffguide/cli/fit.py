@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .._core.atomic import usual_mode
-from ._common import say
+from ._common import check_tolerances, say
 
 PRESETS = ("majda2012",)
 _S_STEP_MM = 2.0
@@ -162,9 +162,7 @@ def _check_inputs(meas, args, cfg):
                              f"got {args.at!r}")
         if not 2 <= args.comp_points <= 10000:
             raise ValueError(f"--comp-points must be in [2, 10000], got {args.comp_points}")
-        for flag, tol in (("--tol-um", args.tol_um), ("--tol-urad", args.tol_urad)):
-            if not (np.isfinite(tol) and tol > 0):
-                raise ValueError(f"{flag} must be a finite number > 0, got {tol:g}")
+        check_tolerances(args)
 
 
 def read_truth(path, s_m):

@@ -4,7 +4,7 @@ import argparse
 
 import numpy as np
 
-from ._common import add_machine_arguments, machine_config
+from ._common import add_machine_arguments, check_tolerances, machine_config
 
 
 def parse_positions(text: str) -> np.ndarray:
@@ -151,9 +151,7 @@ def run(args) -> int:
             f"--field-at must lie within the swept positions [{positions.min() * 1e3:g}, "
             f"{positions.max() * 1e3:g}] mm, got {args.field_at:g}"
         )
-    for flag, tol in (("--tol-um", args.tol_um), ("--tol-urad", args.tol_urad)):
-        if not (np.isfinite(tol) and tol > 0):
-            raise ValueError(f"{flag} must be a finite number > 0, got {tol:g}")
+    check_tolerances(args)
     nx, ny = parse_mesh(args.mesh) if args.mesh else (None, None)
     rails = read_rails_csv(args.rails) if args.rails else paper_variant(args.variant)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))

@@ -492,10 +492,10 @@ def fit_rails(
     lead_B, lead_basis = _lead_basis(meas)
     align_S, align_chan = _alignment_columns(meas)
     n_lead = lead_B.shape[1]
-    lead_B = np.hstack([lead_B, align_S])  # the nuisance columns: lead, then alignment slopes
-    n_theta, n_q, n_l = Z.shape[1], family.n_params, lead_B.shape[1]
+    nuisance_B = np.hstack([lead_B, align_S])  # the ℓ columns: lead, then alignment slopes
+    n_theta, n_q, n_l = Z.shape[1], family.n_params, nuisance_B.shape[1]
     n_x = n_theta + n_q + n_l
-    prob = _problem(family, meas, basis, lead_B, x_ref)
+    prob = _problem(family, meas, basis, nuisance_B, x_ref)
     n_chan, chan = prob.n_chan, meas.channel_index()
     M = np.zeros((basis.size + n_q + n_l, n_x))  # v = M x
     M[:basis.size, :n_theta] = Z
