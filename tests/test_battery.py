@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from battery import cases
 from battery.cases import CASES, result
-from battery.score import TRIM, score_profiles
+from battery.score import TRIM, score_fit, score_profiles
 
 from diffguide.inverse import RailBasis, blind_wavelengths
 from diffguide.io.measurements import QUANTITIES
@@ -37,14 +37,18 @@ XFAIL: dict[tuple[str, str], str] = {
     ("error", "thickness_70mm"): _NOW + "profile errors 8/18/9/28 % (joint estimate 7/25/10/34 %, "
     "structure fixed at the preset 9/35/12/47 %); thickness 76 ± 10 mm (70). With the structure "
     "known (oracle) 7/21/9/30 %: the bound is below what these data hold. The miss is the rails' "
-    "horizontal half-difference, 22 % (oracle 24 %); means and vertical difference 3-7 %",
+    "horizontal half-difference, 22 % (oracle 24 %); means and vertical difference 3-7 %. Fitted "
+    "with the machine that made the data, worst profile 30 %, 27 % with the half-difference's "
+    "prior scale chosen in hindsight: test_the_15_percent_bound_is_beyond_the_data",
     ("error", "preload_2pct"): _NOW + "profile errors 10/24/7/24 %: the preload is not determined "
     "by these data (reported as such) and the thickness takes up part of its effect; with the "
     "structure known (oracle) 9/22/5/20 %; the miss is the horizontal half-difference, 22 % "
-    "(oracle 19 %); means and vertical difference 3-8 %",
+    "(oracle 19 %); means and vertical difference 3-8 %. With the machine that made the data "
+    "21 % (22 % at the hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data",
     ("error", "preload_13pct"): _NOW + "profile errors 6/8/5/16 % (joint estimate 6/16/5/21 %); "
     "with the structure known (oracle) 6/8/5/17 %; horizontal half-difference 10 % (oracle "
-    "11 %), the other combinations 3-7 %",
+    "11 %), the other combinations 3-7 %. With the machine that made the data 18 % (17 % at the "
+    "hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data",
     ("structure", "preload_2pct"): _NOW + "thickness 65 ± 8 mm against 50 mm (2.1σ): the truth's "
     "preload (2 %) sits on the edge of the stated prior range and the thickness compensates",
 }
@@ -111,6 +115,29 @@ def test_score_closed_forms():
     np.testing.assert_allclose(sc.combination_rel[0], 0.0, atol=1e-9)
     assert np.all(sc.coverage[1] == 1.0)
     assert np.isclose(sc.s[0] - basis.start, TRIM * L, atol=L / 400)
+
+
+def test_combination_sigma_closed_form():
+    """A profile whose coefficients are fully correlated with variance a² has σ = a at every s
+    (the B-splines sum to one); rails independent: each combination (e₁ ± e₂)/2 has σ = a/√2."""
+    import types
+
+    from battery.score import combination_sigma_rel
+
+    basis = RailBasis.covering(-0.53, 0.53, 0.048)
+    n, a = basis.n_coeffs, 0.2e-6
+    fit = types.SimpleNamespace(basis=basis, fix_slope=(True, True),
+                                cov=np.kron(np.eye(4), np.full((n, n), a**2)))
+    case = cases.baseline()
+    truth = lambda s: cases.truth_profiles(case, s)  # noqa: E731
+    s = np.linspace(basis.start, basis.end, 401)
+    tg = basis.gauge_fix(s, truth(s).reshape(4, -1), (True, True)).reshape(2, 2, -1)
+    keep = (s >= basis.start + TRIM * (basis.end - basis.start) - 1e-12) & (
+        s <= basis.end - TRIM * (basis.end - basis.start) + 1e-12)
+    plane_rms = np.sqrt(np.mean(tg[..., keep] ** 2, axis=(0, 2)))
+    np.testing.assert_allclose(combination_sigma_rel(fit, truth),
+                               (a / np.sqrt(2) / plane_rms)[:, None] * np.ones((2, 2)),
+                               rtol=1e-9)
 
 
 def test_readings_round_trip_through_the_input_path():
@@ -204,8 +231,6 @@ def test_stated_waviness_covers_the_blind_content():
     48 mm content, 0.28 µm RMS) no data can bound; a user who states the rails' short-wave
     waviness (``waviness=``, here 0.3 µm RMS) gets bands that hold the truth: ≥ 85 % of the
     points, ≥ 70 % for every profile — and every σ² is the unstated fit's plus the waviness²."""
-    from battery.score import score_fit
-
     from diffguide.inverse import fit_rails
 
     res = result("blind_wavelengths")
@@ -254,6 +279,30 @@ def test_wrong_structure_determined_combinations_within_15_percent(name):
     rel = res.score.combination_rel
     determined = [rel[0, 0], rel[0, 1], rel[1, 0]]
     assert max(determined) <= 0.15, rel
+
+
+#: The wrong-structure cases whose 15 % per-profile bound fails (XFAIL above).
+_BEYOND_THE_DATA = [n for n in WRONG_STRUCTURE if ("error", n) in XFAIL]
+
+
+@pytest.mark.parametrize("name", _BEYOND_THE_DATA)
+def test_the_15_percent_bound_is_beyond_the_data(name):
+    """Why the 15 % per-profile bound stays an expected failure on these cases: fitted with *the
+    machine that made the data* (``cases.truth_model_fit``: the truth's 40 × 20 mesh, thickness
+    and preload — nothing unknown but the rails), the worst profile is still more than 15 % off,
+    and the fit's own σ there says as much (RMS σ at least half the RMS error; the profile
+    inside ±2σ at ≥ 70 % of its points): the data do not hold the horizontal half-difference to
+    that bound. Measured (bench/battery_limits.py): worst profile 30/21/18 % (70 mm, 2 %, 13 %),
+    the half-difference's own σ 23/18/12 % of the plane's truth RMS; with its prior's scale
+    chosen in hindsight (five decades, knowing the truth) the worst profile is still 27/22/17 %.
+    If this test fails, the data hold more than measured and the bound may be within reach."""
+    case = result(name).case
+    fit = cases.truth_model_fit(name)
+    sc = score_fit(fit, lambda s: cases.truth_profiles(case, s))
+    worst = np.unravel_index(int(sc.rel.argmax()), sc.rel.shape)
+    assert sc.rel[worst] > 0.15, sc.rel
+    assert sc.sigma_rms_um[worst] >= 0.5 * sc.rms_um[worst], (sc.rms_um, sc.sigma_rms_um)
+    assert sc.coverage[worst] >= 0.70, sc.coverage
 
 
 @pytest.mark.parametrize("name", _params("structure", WRONG_STRUCTURE))

@@ -548,6 +548,21 @@ def oracle_score(name: str):
     return _ORACLES[name]
 
 
+_TRUTH_MODEL_FITS: dict = {}
+
+
+def truth_model_fit(name: str):
+    """Case ``name``'s data fitted with **the machine that made them** (:func:`truth_machine`:
+    the 40 × 20 mesh, the case's thickness and preload, held fixed) — nothing unknown but the
+    rails: what these data hold at best, whatever the fit's model and structure estimate."""
+    from diffguide.inverse import fit_rails
+
+    if name not in _TRUTH_MODEL_FITS:
+        case = result(name).case
+        _TRUTH_MODEL_FITS[name] = fit_rails(truth_machine(case), measurements(case))
+    return _TRUTH_MODEL_FITS[name]
+
+
 @dataclasses.dataclass
 class CaseResult:
     """A case run end to end: the fit (``None`` when it raised: ``error``) and its score."""

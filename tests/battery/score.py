@@ -110,3 +110,28 @@ def score_fit(fit, truth, n: int = N_GRID) -> Score:
     s = np.linspace(fit.basis.start, fit.basis.end, n)
     values, sigma = fit.profiles(s)
     return score_profiles(fit.basis, fit.fix_slope, values, sigma, truth(s), s)
+
+
+def combination_sigma_rel(fit, truth, n: int = N_GRID) -> np.ndarray:
+    """The fit's own posterior σ of each combination of the two rails — ``(2 planes, 2 [mean,
+    half-difference])``, RMS over the scored range (:data:`TRIM`) — over the plane's truth RMS
+    (gauge removed), the denominator of :attr:`Score.combination_rel`: what the data (and the
+    prior) leave of each combination, next to what the fit got wrong."""
+    basis = fit.basis
+    s = np.linspace(basis.start, basis.end, n)
+    lo = basis.start + TRIM * (basis.end - basis.start)
+    hi = basis.end - TRIM * (basis.end - basis.start)
+    keep = (s >= lo - 1e-12) & (s <= hi + 1e-12)
+    true = gauge_fixed(basis, s, truth(s), fit.fix_slope)[..., keep]
+    B = basis.matrix(s[keep])
+    k = basis.n_coeffs
+    out = np.zeros((2, 2))
+    for p in range(2):
+        plane_rms = np.sqrt(np.mean(true[:, p] ** 2))
+        for j, sign in enumerate((1.0, -1.0)):  # mean (e₁ + e₂)/2, half-difference (e₂ − e₁)/2
+            T = np.zeros((k, 4 * k))  # profile order: rail 1 v, rail 1 h, rail 2 v, rail 2 h
+            T[:, p * k:(p + 1) * k] = 0.5 * sign * np.eye(k)
+            T[:, (2 + p) * k:(3 + p) * k] = 0.5 * np.eye(k)
+            var = np.einsum("sk,kl,sl->s", B, T @ fit.cov @ T.T, B)
+            out[p, j] = np.sqrt(np.mean(np.maximum(var, 0.0))) / plane_rms
+    return out
