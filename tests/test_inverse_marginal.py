@@ -10,6 +10,7 @@ from diffguide.inverse.marginal import (
     carries_information,
     marginal_score,
     maximise_marginal,
+    widen,
 )
 
 
@@ -44,6 +45,37 @@ def test_a_minimum_outside_the_box_is_flagged_and_a_flat_score_keeps_the_prior()
     q, cov, _ = maximise_marginal(lambda q: q @ q, np.array([0.4]), np.array([[-3.0, 3.0]]))
     np.testing.assert_allclose(cov, np.eye(1), rtol=1e-6)
     assert abs(q[0]) < 1e-6
+
+
+def test_widen_takes_the_sigma_a_flatter_side_implies_and_never_narrows():
+    """Closed forms. Along the principal axes ``v₁, v₂`` of a rotated covariance, the objective
+    ``a u₁² (u₁ ≤ 0), b u₁² (u₁ > 0)`` plus ``c u₂²`` (``u = Vᵀq``): the flatter side of axis 1
+    implies σ = 1/√b, which replaces the Laplace σ there, with the axes kept; axis 2 is exactly
+    quadratic with the Laplace σ = 1/√c and stays; a side with no rise at all gives the prior's
+    σ = 1; an objective steeper than its quadratic model at ±2σ is never narrowed."""
+    rot = np.array([[np.cos(0.6), -np.sin(0.6)], [np.sin(0.6), np.cos(0.6)]])
+    a, b, c = 50.0, 4.0, 9.0
+
+    def f(q):
+        u = rot.T @ q
+        return (a if u[0] <= 0 else b) * u[0] ** 2 + c * u[1] ** 2
+
+    laplace = rot @ np.diag([2.0 / (a + b), 1.0 / c]) @ rot.T  # the stencil's curvature (a+b)/2
+    box = np.array([-5.0, -5.0]), np.array([5.0, 5.0])
+    cov, factors = widen(f, np.zeros(2), laplace, *box)
+    np.testing.assert_allclose(cov, rot @ np.diag([1.0 / b, 1.0 / c]) @ rot.T, rtol=1e-9,
+                               atol=1e-15)
+    np.testing.assert_allclose(sorted(factors), [1.0, np.sqrt((a + b) / (2 * b))], rtol=1e-9)
+    # no rise at all on one side: the prior's σ (1)
+    flat = lambda q: a * min(q[0], 0.0) ** 2  # noqa: E731
+    cov, _ = widen(flat, np.zeros(1), np.array([[0.01]]), np.array([-5.0]), np.array([5.0]))
+    np.testing.assert_allclose(cov, [[1.0]])
+    # steeper than the quadratic model at ±2σ (σ = 0.4: a rise of 12.3 > 4): unchanged
+    quartic = lambda q: 30.0 * q[0] ** 4  # noqa: E731
+    cov, factors = widen(quartic, np.zeros(1), np.array([[0.16]]), np.array([-5.0]),
+                         np.array([5.0]))
+    np.testing.assert_allclose(cov, [[0.16]])
+    assert factors.tolist() == [1.0]
 
 
 def test_failed_model_evaluations_give_the_prior_uncertainty():

@@ -23,6 +23,16 @@ charges a structure for every direction in which it makes the data more sensitiv
 differences; the curvature there gives the Laplace approximation of ``q``'s posterior,
 ``Cov q = 2 H⁻¹`` (``H`` the Hessian of the objective above, never below the prior's ``2I``).
 
+**The Laplace σ is checked, and widened where the objective is flatter** (:func:`widen`). The
+objective need not be quadratic: a preload the data see only through a small, saturating
+effect gives a score that rises steeply on one side and barely on the other. Along each
+principal axis ``v_i`` of ``Cov q`` (σ ``σ_i``) the objective is evaluated at ``q̂ ± 2σ_i v_i``;
+a Gaussian posterior rises by exactly 4 there. Where it rises by less, ``Δ < 4``, the σ that
+the rise implies, ``2σ_i/√Δ``, replaces ``σ_i`` (never above the prior's 1; never narrowed).
+Seen on the battery's 70 mm table (8 noise seeds): on 3 of them the Laplace σ called the preload
+"determined" at 4.1–5.5 % ± 1.5–1.8 % against a truth of 8 %, while the objective rose by only
+1.9–2.9 at +2σ (toward the truth) and 3.1–5.5 at +3σ.
+
 **Data with no content** (:func:`carries_information`). With the noise scale profiled out the
 score sees only the *shape* of ``y``: ``y → cy`` adds ``N' log c²`` whatever ``q`` (this is
 what makes the structure independent of the scale of the stated σ). Data that are zero — every
@@ -55,6 +65,8 @@ TOL = 0.1
 #: Data whose norm is below this fraction of ``max(√N', scale)`` are zero to round-off
 #: (:func:`carries_information`).
 NULL_TOL = 1e-9
+#: The Laplace σ is checked at this many σ along each principal axis (:func:`widen`).
+CHECK_AT = 2.0
 
 
 def carries_information(y, n_eff: int, scale: float = 0.0) -> bool:
@@ -105,13 +117,41 @@ def _floor(H):
     return (V * np.maximum(w, 2.0)) @ V.T
 
 
+def widen(f, q, cov, lo, hi, at: float = CHECK_AT):
+    """``Cov q`` widened where the objective ``f`` (``-2 log p + ‖q‖²``) rises more slowly than
+    its quadratic model (module docstring): along each eigenvector ``v_i`` of ``cov`` (σ ``σ_i``),
+    at ``q ± at·σ_i v_i`` (clipped to ``[lo, hi]``, distance ``t``), a rise ``Δ`` implies the σ
+    ``t/√Δ`` (``Δ ≤ 0``: no curvature at all); ``σ_i`` becomes the largest of itself and the two
+    sides' implied σ, at most 1 (the prior's). Returns ``(cov, factors)``, ``factors`` the ratio
+    new/old σ per axis (1 where unchanged)."""
+    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    sd = np.sqrt(np.maximum(w, 0.0))
+    new = sd.copy()
+    f0 = f(q)
+    for i in range(len(sd)):
+        for sign in (1.0, -1.0):
+            qq = np.clip(q + sign * at * sd[i] * V[:, i], lo, hi)
+            t = float(np.linalg.norm(qq - q))
+            if t < 1e-9 * max(sd[i], 1e-300):
+                continue
+            with np.errstate(invalid="ignore"):
+                rise = f(qq) - f0
+            if np.isnan(rise):  # the model failed there: nothing learnt on that side
+                continue
+            implied = t / np.sqrt(rise) if rise > 0 else np.inf
+            new[i] = max(new[i], min(implied, 1.0))
+    factors = np.where(sd > 0, new / np.where(sd > 0, sd, 1.0), 1.0)
+    return (V * new**2) @ V.T, factors
+
+
 def maximise_marginal(score, q0, bounds, *, h: float = STEP, max_iter: int = MAX_ITER):
     """Minimise ``score(q)`` (``-2 log p(y|q) + ‖q‖²``) over the box ``bounds`` (``(n, 2)``,
     prior-σ units) by Newton steps on central differences.
 
     Returns ``(q, Cov q, info)``: ``Cov q = 2H⁻¹`` at ``q`` (at most the prior's ``I``; the prior's
-    ``I`` when the score could not be evaluated around ``q``), ``info`` with ``iterations``,
-    ``evaluations``, ``at_bound`` (per component) and ``message``.
+    ``I`` when the score could not be evaluated around ``q``), widened by :func:`widen` where the
+    objective is flatter than that; ``info`` with ``iterations``, ``evaluations``, ``at_bound``
+    (per component), ``widened`` (σ factor per principal axis) and ``message``.
     """
     q = np.asarray(q0, float).copy()
     bounds = np.asarray(bounds, float)
@@ -159,6 +199,13 @@ def maximise_marginal(score, q0, bounds, *, h: float = STEP, max_iter: int = MAX
     else:
         info["message"] = f"stopped after {max_iter} Newton iterations"
     info["at_bound"] = [bool(a or b) for a, b in zip(q <= lo + 1e-9, q >= hi - 1e-9)]
+    if not info["message"].startswith("the model failed"):
+        cov, factors = widen(f, q, cov, bounds[:, 0], bounds[:, 1])
+        info["widened"] = [float(x) for x in factors]
+        if np.any(factors > 1.0 + 1e-9):
+            _log.info("fit: the structure's Laplace σ widened by %s along its principal axes "
+                      "(the objective rises more slowly than its quadratic model)",
+                      ", ".join(f"{x:.2f}" for x in factors))
     info["evaluations"] = count[0]
     cov = 0.5 * (cov + cov.T)
     return q, cov, info
