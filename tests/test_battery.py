@@ -49,8 +49,6 @@ XFAIL: dict[tuple[str, str], str] = {
     "with the structure known (oracle) 6/8/5/17 %; horizontal half-difference 10 % (oracle "
     "11 %), the other combinations 3-7 %. With the machine that made the data 18 % (17 % at the "
     "hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data",
-    ("structure", "preload_2pct"): _NOW + "thickness 65 ± 8 mm against 50 mm (2.1σ): the truth's "
-    "preload (2 %) sits on the edge of the stated prior range and the thickness compensates",
 }
 
 
