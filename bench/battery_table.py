@@ -73,7 +73,8 @@ def _structure(res) -> str:
     if "thickness" in st:
         v = st["thickness"]
         true = (c.thickness or 0.05) * 1e3
-        out.append(f"t {v['value'] * 1e3:.0f} ± {v['sigma'] * 1e3:.0f} mm ({true:.0f})"
+        sig = v["sigma"] * 1e3
+        out.append(f"t {v['value'] * 1e3:.0f} ± {sig:.{1 if sig < 1.5 else 0}f} mm ({true:.0f})"
                    + ("" if v["determined"] else " prior"))
     if "preload" in st:
         v = st["preload"]

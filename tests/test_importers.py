@@ -112,6 +112,20 @@ def test_wide_differential_pair_and_default_x0(tmp_path):
     np.testing.assert_allclose(np.sort(m2.position), [0.1, 0.3])
 
 
+def test_wide_resolution_line_survives_import(tmp_path):
+    # a level showing whole arcseconds; the canonical file (6 decimals of µm/m) keeps the step
+    from diffguide.io.importers import format_long, import_readings
+    from diffguide.io.measurements import parse_readings
+
+    text = ("point;P1\nx_mm;0\ny_mm;0\nquantity;EBX\nunit;arcsec\nresolution;0.5\n"
+            "target_mm;run1_fwd;run1_bwd\n0;1.5;2\n100;-1;0.5\n")
+    readings = import_readings(_write(tmp_path, text), "wide")
+    step = 0.5 * math.pi / 648000  # rad
+    assert [r.resolution for r in readings] == pytest.approx([step / math.sqrt(12)] * 4)
+    again = parse_readings(format_long(readings))
+    assert [r.resolution for r in again] == pytest.approx([step / math.sqrt(12)] * 4, rel=1e-5)
+
+
 @pytest.mark.parametrize(
     "text, line, expected",
     [

@@ -273,6 +273,40 @@ def test_identical_runs_written_coarsely_get_the_rounding_floor():
     assert set(m.sigma_source) == {"floor"}
 
 
+def test_import_keeps_the_rounding_floor_of_coarse_readings():
+    # the whole-arcsecond file above, converted to the canonical 6-decimal µm/m file: the
+    # written digits would say 1e-6 µm/m; the resolution column keeps the 1″ step
+    from diffguide.io.importers import format_long
+
+    values = [str(k % 7 - 3) for k in range(36)]
+    original = parse_readings(_identical_runs_text("EBX", "arcsec", "level", values))
+    text = format_long(original)
+    assert text.splitlines()[0].endswith(",z_mm,resolution")
+    again = parse_readings(text)
+    assert [r.resolution for r in again] == pytest.approx([r.resolution for r in original],
+                                                          rel=1e-5)
+    step = math.pi / 648000
+    m = merge_readings(again)
+    assert np.allclose(m.sigma, step / math.sqrt(12) / math.sqrt(10), rtol=1e-5)
+    assert set(m.sigma_source) == {"floor"}
+
+
+def test_a_stated_resolution_replaces_the_written_digits():
+    # 2 µm/m steps on a display, exported with 3 decimals; a pair rounds both of its readings
+    r = parse_readings(HEADER + ",resolution\n0,P1,0,0,EBX,1.250,um/m,2\n")[0]
+    assert r.resolution == pytest.approx(2e-6 / math.sqrt(12))
+    r = parse_readings(HEADER + ",reference,resolution\n0,P1,0,0,EBX,1.250,um/m,0.5,2\n")[0]
+    assert r.resolution == pytest.approx(math.sqrt(2) * 2e-6 / math.sqrt(12))
+    r = parse_readings(HEADER + ",resolution\n0,P1,0,0,EBX,1.250,um/m,\n")[0]
+    assert r.resolution == pytest.approx(1e-3 * 1e-6 / math.sqrt(12))
+
+
+@pytest.mark.parametrize("raw", ["-1", "x", "20000"])
+def test_a_bad_resolution_names_the_line_and_the_field(raw):
+    with pytest.raises(ValueError, match=r"f\.csv:2: field 'resolution'"):
+        parse_readings(HEADER + f",resolution\n0,P1,0,0,EBX,1.25,um/m,{raw}\n", "f.csv")
+
+
 def test_a_real_scatter_above_the_floor_is_kept():
     # 0.3 µm scatter of a linear interferometer: above its 0.1 µm floor, used as it is
     rng = np.random.default_rng(3)

@@ -5,7 +5,7 @@ not blank or a ``#`` comment:
 
 **long** (canonical, :mod:`diffguide.io.measurements`): one reading per row, a header line with
 ``position_mm``, ``point``, ``x_mm``, ``y_mm``, ``quantity``, ``value``, ``unit`` and optionally
-``sigma``, ``run``, ``direction``, ``instrument``, ``z_mm``, ``reference``.
+``sigma``, ``run``, ``direction``, ``instrument``, ``z_mm``, ``reference``, ``resolution``.
 
 **wide** ("targets × runs", as laser-calibration software and ISO 230-2 reports lay a
 bidirectional positioning test out): one or more *blocks*, each a channel (one point, one
@@ -24,9 +24,9 @@ quantity, one instrument)::
 
 - metadata lines ``key;value`` before the table: ``point``, ``x_mm``, ``y_mm`` (mm on the table
   top from its centre), ``quantity`` (EXX ... ECX), ``unit`` (any unit of the long format) are
-  required; ``instrument``, ``sigma`` (standard uncertainty of one reading, in ``unit``) and
-  ``z_mm`` are optional. Each block states its own metadata: a metadata line after a table
-  starts the next block.
+  required; ``instrument``, ``sigma`` (standard uncertainty of one reading, in ``unit``),
+  ``z_mm`` and ``resolution`` (the readings' rounding step, in ``unit``) are optional. Each
+  block states its own metadata: a metadata line after a table starts the next block.
 - the table header: ``target_mm`` (or ``position_mm``), then one column per run and direction,
   named ``run<k>_<dir>`` with ``<dir>`` one of ``fwd``/``forward``/``pos``/``positive``/``up``/``+``
   or ``bwd``/``backward``/``neg``/``negative``/``down``/``-`` (``run<k>`` alone: forward). A
@@ -48,6 +48,7 @@ is read when the separator is not ``,``; values, units and directions as in the 
 
 import dataclasses
 import io
+import math
 import os
 import re
 
@@ -71,7 +72,7 @@ from .measurements import (
 
 LAYOUTS = ("auto", "long", "wide")
 WIDE_REQUIRED = ("point", "x_mm", "y_mm", "quantity", "unit")
-WIDE_OPTIONAL = ("instrument", "sigma", "z_mm")
+WIDE_OPTIONAL = ("instrument", "sigma", "z_mm", "resolution")
 WIDE_TARGET = ("target_mm", "position_mm")
 _RUN_COLUMN = re.compile(
     r"^run\s*_?\s*(?P<run>[0-9a-z]+?)(?:[_ ]?(?P<dir>forward|backward|positive|negative|fwd|bwd|"
@@ -209,6 +210,7 @@ def parse_wide(
                 "direction": direction,
                 "instrument": meta.get("instrument", ""),
                 "z_mm": meta.get("z_mm", ""),
+                "resolution": meta.get("resolution", ""),
             }
             kref = lookup.get((run, direction, True))
             if kref is not None:
@@ -293,7 +295,9 @@ CANONICAL_UNIT = {"linear": "um", "angular": "um/m"}
 def format_long(readings, comment: str = "") -> str:
     """The canonical long CSV of ``readings`` (µm for EXX/EYX/EZX, µm/m for the angles; a
     differential pair already reduced to measuring − reference; 6 decimals, i.e. 1 pm or
-    1 prad — below any instrument's resolution)."""
+    1 prad — below any instrument's resolution). The ``resolution`` column keeps the rounding
+    step of the readings as read (``√12 ×`` their rounding's standard uncertainty, so a reduced
+    pair's two roundings stay in quadrature; empty where unknown)."""
     cols = [c for c in REQUIRED + OPTIONAL if c != "reference"]
     out = io.StringIO()
     for line in comment.splitlines():
@@ -303,11 +307,12 @@ def format_long(readings, comment: str = "") -> str:
         kind = "linear" if r.unit in LINEAR_UNITS else "angular"
         assert r.unit in (LINEAR_UNITS if kind == "linear" else ANGULAR_UNITS)
         sigma = "" if r.sigma is None else f"{r.sigma * 1e6:.6f}"
+        step = f"{r.resolution * math.sqrt(12) * 1e6:.6g}" if r.resolution > 0 else ""
         point = f'"{r.point}"' if ("," in r.point or '"' in r.point) else r.point
         out.write(
             f"{r.position * 1e3:.6f},{point},{r.xy[0] * 1e3:.6f},{r.xy[1] * 1e3:.6f},"
             f"{r.quantity},{r.value * 1e6:.6f},{CANONICAL_UNIT[kind]},{sigma},{r.run},"
-            f"{r.direction},{r.instrument},{r.z * 1e3:.6f}\n"
+            f"{r.direction},{r.instrument},{r.z * 1e3:.6f},{step}\n"
         )
     return out.getvalue()
 

@@ -5,7 +5,7 @@ separator is ``,``, ``;`` or tab, sniffed from the header line; with ``;`` or ta
 comma is read; other layouts: :mod:`diffguide.io.importers`)::
 
     position_mm,point,x_mm,y_mm,quantity,value,unit[,sigma][,run][,direction][,instrument][,z_mm]
-    [,reference]
+    [,reference][,resolution]
 
 - ``position_mm``: table position ``x`` (mm). ``point``: the control point's name; ``x_mm``,
   ``y_mm``: where it is on the table top (mm, from the table centre; the same for every row of
@@ -33,6 +33,10 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
   surface) — an interferometer's optics or a straightness reflector on a riser. A linear error
   read there carries the Abbe terms of the table's rotation: ``EXX(z) = EXX + z·EBX``,
   ``EYX(z) = EYX − z·EAX``; the angles do not depend on it.
+- ``resolution``: the rounding step ``q`` of ``value`` (and ``reference``) as the instrument
+  wrote them, in ``unit`` (≥ 0; empty or 0: the unit of the last digit written, as by default).
+  ``diffguide import`` writes it, so that a file converted to 6 decimals keeps the original
+  rounding (the floor of step 3 below).
 
 Merging (what a metrologist does with ISO 230-2 style runs), per channel = (point, quantity,
 instrument) — so a level and an interferometer at one point are two channels, each with its own
@@ -115,7 +119,7 @@ MIN_RUNS_FOR_OUTLIERS = 3
 OUTLIER_Z = 6.0
 
 REQUIRED = ("position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit")
-OPTIONAL = ("sigma", "run", "direction", "instrument", "z_mm", "reference")
+OPTIONAL = ("sigma", "run", "direction", "instrument", "z_mm", "reference", "resolution")
 _FORWARD = ("forward", "fwd", "f", "+", "+1", "1", "up", "positive", "pos")
 _BACKWARD = ("backward", "bwd", "b", "reverse", "rev", "r", "-", "-1", "down", "negative", "neg")
 #: Largest plausible |reading| (SI): 10 mrad = 10000 µm/m for an angle, 10 mm = 10000 µm for a
@@ -226,10 +230,18 @@ def _parse_row(row: dict, line: int) -> Reading:
         _field_error("unit", unit, f"not a unit of {quantity}", allowed)
     factor = units[key]
     value = _plausible(row, "value", unit, factor, quantity)
+    paired = bool((row.get("reference") or "").strip())
     steps = [written_step(row["value"])]
-    if (row.get("reference") or "").strip():  # differential pair: measuring minus reference
+    if paired:  # differential pair: measuring minus reference
         value -= _plausible(row, "reference", unit, factor, quantity)
         steps.append(written_step(row["reference"]))
+    if (row.get("resolution") or "").strip():  # the stated rounding step replaces the digits'
+        step = _number(row, "resolution", unit)
+        limit = VALUE_LIMIT[_kind(quantity)]
+        if not 0 <= step * factor <= limit:
+            _field_error("resolution", row["resolution"].strip(), "not a plausible rounding step",
+                         f"0 (unknown) or more, up to {limit / factor:.6g} {unit}")
+        steps = [step] * len(steps)
     resolution = math.sqrt(sum(q * q for q in steps) / 12) * factor if all(steps) else 0.0
     sigma = None
     if (row.get("sigma") or "").strip():
