@@ -61,10 +61,15 @@ the solution and the fit repeated once if it moved by more than a factor 1.5.
 them by the delta method,
 
 .. math::  \mathrm{Cov}\,c = s²H_c⁻¹ + G\,\mathrm{Cov}\,q\,Gᵀ,\qquad
-           G = ∂ĉ/∂q = -H_c⁻¹J_cᵀJ_q,
+           G = ∂ĉ/∂q,
 
 so the rails' bands include the structure's uncertainty and widen where the structure is not
-determined. ``s² = max(1, χ²/dof)``: when the model does not explain the data to their stated σ,
+determined. ``G`` is a secant over ``±σ_q`` along each unknown: the rails solved again on the
+model linearised at ``q ± σ_q`` (:func:`_structure_sensitivity`, two linearisations per
+unknown). The Gauss–Newton tangent ``−H_c⁻¹J_cᵀJ_q`` it replaces leaves out that the structure
+scales how strongly the rails show in the data (a stiffer table shows a rail difference less):
+on the battery's straightness case its thickness column was a third of what refitting moves
+the rails. ``s² = max(1, χ²/dof)``: when the model does not explain the data to their stated σ,
 the bands widen accordingly (never narrow). ``χ²/dof = ‖r‖² / (N − n_channels − edf)``,
 ``edf = tr(H_c⁻¹J_cᵀJ_c) + tr(I − Cov q)``.
 
@@ -264,6 +269,10 @@ class RailFit(eqx.Module):
             Omega: the rail prior's matrix ``Ω`` (λ excluded). rigid: fitted with the rigid-table
             model. waviness: the stated RMS (m) of rail content shorter than the knot grid
             resolves, in every σ of :meth:`profiles` (:func:`fit_rails`).
+            structure_sensitivity: the delta method's ``G = ∂ĉ/∂q`` — how the fitted spline
+            coefficients move (m) per prior σ of each structural unknown (its log), ``(2 rails,
+            2 planes, n, n_q)``; structure_cov: ``Cov q`` in the same units ``(n_q, n_q)``
+            (empty without structural unknowns).
     """
 
     basis: RailBasis
@@ -297,6 +306,8 @@ class RailFit(eqx.Module):
     waviness: float = 0.0
     alignment: np.ndarray = eqx.field(default_factory=lambda: np.zeros(0))
     alignment_channels: tuple[int, ...] = eqx.field(static=True, default=())
+    structure_sensitivity: np.ndarray = eqx.field(default_factory=lambda: np.zeros(0))
+    structure_cov: np.ndarray = eqx.field(default_factory=lambda: np.zeros((0, 0)))
 
     @property
     def chi2_dof(self) -> float:
@@ -420,6 +431,45 @@ def _as_family(machine) -> MachineFamily:
     if isinstance(machine, MachineFamily):
         return machine
     return MachineFamily(machine, None, (), 0.0, 1.0, StructurePriors())
+
+
+#: Half-step of :func:`_structure_sensitivity`'s secant, within these limits (prior σ).
+SECANT_STEP_LIMITS = (0.05, 1.0)
+
+
+def _structure_sensitivity(linearise, x_at, x, J, ic, iq, q_bounds, cov_q, Pc, Hc_inv):
+    """``G = ∂ĉ/∂q`` at the solution ``x``, ``(len(ic), len(iq))``: how the rails and lead that
+    minimise the objective move with each structural unknown, as a secant over ``±σ_q``.
+
+    At each step ``q_v`` the rails are solved again on the model linearised there — one
+    Gauss–Newton step from ``x_c``, ``ĉ(q_v) = x_c − H_v⁻¹(J_vᵀr_v + P_c x_c)``, the model being
+    all but linear in the rails (``r_v = r(x_at(q_v)) + J_v·(x_c − x_at,c)``: ``x_at``, where
+    the model was linearised, is ``x`` for Levenberg–Marquardt) — and ``G_i = (ĉ(q + h) −
+    ĉ(q − h))/2h``. The half-step ``h`` is the unknown's posterior σ, ``√Cov q_ii``, within
+    :data:`SECANT_STEP_LIMITS` and its bounds (one-sided at a bound). Where the model fails at a
+    step the column is the Gauss–Newton ``−H_c⁻¹J_cᵀJ_q``, and a note is logged.
+    """
+    out = np.empty((len(ic), len(iq)))
+    for i, k in enumerate(iq):
+        h = float(np.clip(np.sqrt(max(cov_q[i, i], 0.0)), *SECANT_STEP_LIMITS))
+        a, b = max(x_at[k] - h, q_bounds[i, 0]), min(x_at[k] + h, q_bounds[i, 1])
+        c = []
+        for v in (a, b) if b > a else ():
+            xv = x_at.copy()
+            xv[k] = v
+            r_v, J_v, _, ok_v, _ = linearise(xv)
+            if not (ok_v and np.all(np.isfinite(J_v)) and np.all(np.isfinite(r_v))):
+                break
+            Jv = J_v[:, ic]
+            r_v = r_v + Jv @ (x[ic] - x_at[ic])
+            c.append(-np.linalg.solve(_spd(Jv.T @ Jv + Pc), Jv.T @ r_v + Pc @ x[ic]))
+        if len(c) == 2:
+            out[:, i] = (c[1] - c[0]) / (b - a)
+        else:
+            _log.info("fit: the model failed around the structure's estimate: its share of the "
+                      "rails' σ from the Gauss-Newton term alone")
+            out[:, i] = -Hc_inv @ (J[:, ic].T @ J[:, k])
+    return out
 
 
 def fit_rails(
@@ -672,12 +722,13 @@ def fit_rails(
     if method == "linear":  # residuals of the linear model at the solution
         r = r + J[:, ic] @ (x[ic] - x_lin[ic])
     # the rails and lead given the structure, then the structure's uncertainty carried in:
-    # Cov c = s²H_c⁻¹ + G Cov q Gᵀ, G = ∂ĉ/∂q = −H_c⁻¹J_cᵀJ_q (the delta method)
-    Jcc, Jq = J[:, ic], J[:, iq]
+    # Cov c = s²H_c⁻¹ + G Cov q Gᵀ, G = ∂ĉ/∂q over ±σ_q (the delta method, a secant)
+    Jcc = J[:, ic]
     Hc = _spd(Jcc.T @ Jcc + Pc)
     Hc_inv = np.linalg.inv(Hc)
     Hc_inv = 0.5 * (Hc_inv + Hc_inv.T)
-    G = -Hc_inv @ (Jcc.T @ Jq)
+    x_at = x_lin if method == "linear" else x  # where the model was linearised
+    G = _structure_sensitivity(linearise, x_at, x, J, ic, iq, q_bounds, cov_q, Pc, Hc_inv)
     edf = float(np.trace(Hc_inv @ (Jcc.T @ Jcc))) + float(np.trace(np.eye(n_q) - cov_q))
     chi2 = float(r @ r)
     used = int(np.sum(weights > 0))
@@ -723,6 +774,8 @@ def fit_rails(
         steps=steps, jacobian=J, jacobian_full=Jc, penalty=P, n_theta=n_theta,
         Omega=Om_curv + choice.kappa * Om_amp,
         rigid=bool(base.rigid), waviness=float(waviness),
+        structure_sensitivity=(Z @ G[:n_theta] * _UM).reshape(2, 2, basis.n_coeffs, n_q),
+        structure_cov=np.asarray(cov_q, float).reshape(n_q, n_q),
     )
 
 
