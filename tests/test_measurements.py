@@ -238,35 +238,58 @@ def test_leave_one_out_deviation_matches_a_median_per_reading():
             np.testing.assert_allclose(leave_one_out_deviation(v), ref, rtol=0, atol=1e-15)
 
 
-def _identical_runs_text(quantity, unit, instrument, values, runs=5):
-    """Every run and direction of every position reads the same written value."""
+def _identical_runs_text(quantity, unit, instrument, values, runs=5, odd=None):
+    """Every run and direction of every position reads the same written value — except, with
+    ``odd = (position index, text)``, run 1's forward reading there."""
     lines = [HEADER + ",run,direction,instrument"]
     for i, v in enumerate(values):
         for run in range(1, runs + 1):
             for d in ("forward", "backward"):
-                lines.append(f"{i * 20},P5,0,0,{quantity},{v},{unit},{run},{d},{instrument}")
+                w = odd[1] if odd and (i, run, d) == (odd[0], 1, "forward") else v
+                lines.append(f"{i * 20},P5,0,0,{quantity},{w},{unit},{run},{d},{instrument}")
     return "\n".join(lines) + "\n"
 
 
-def test_identical_runs_get_the_instrument_floor_not_a_rounding_size_sigma():
-    # values whose means are not exact in binary: the pooled scatter is ~1e-22 m, not 0
+def test_identical_runs_are_one_run_with_the_instrument_default():
+    # runs identical at every position (copies of one run): their mean is no better than one
+    # reading, and they say nothing of the repeatability — σ of one reading is the default
+    # (1 µm for a linear interferometer), merged as one forward and one backward reading
     values = [f"{0.1 * k - 3.697:.3f}" for k in range(36)]
     text = _identical_runs_text("EXX", "um", "interferometer", values)
     notes = []
     m = merge_readings(parse_readings(text, "same.csv"), "same.csv", notes)
-    # floor: max(rounding 0.001 µm / √12, 0.1 × the 1 µm default) = 0.1 µm per reading, and the
+    assert np.allclose(m.sigma, 1e-6 / math.sqrt(2), rtol=1e-12)
+    assert set(m.sigma_source) == {"copies+default"}
+    assert len(notes) == 1 and "EXX at P5 (interferometer)" in notes[0]
+    assert "identical at every position" in notes[0] and "default 1 µm" in notes[0]
+    # a stated σ is one reading's, not divided by the number of copies either
+    stated = parse_readings(text.replace("instrument\n", "instrument,sigma\n", 1)
+                            .replace("interferometer\n", "interferometer,0.3\n"), "same.csv")
+    m = merge_readings(stated)
+    assert np.allclose(m.sigma, 0.3e-6 / math.sqrt(2), rtol=1e-12)
+
+
+def test_runs_agreeing_below_the_instrument_floor_get_the_floor():
+    # all runs identical but one reading 0.001 µm off: a pooled scatter of ~6e-5 µm, below the
+    # floor max(rounding 0.001 µm / √12, 0.1 × the 1 µm default) = 0.1 µm per reading; the
     # merged value is the mean of 10 readings
+    values = [f"{0.1 * k - 3.697:.3f}" for k in range(36)]
+    text = _identical_runs_text("EXX", "um", "interferometer", values, odd=(3, "-3.396"))
+    notes = []
+    m = merge_readings(parse_readings(text, "same.csv"), "same.csv", notes)
     assert np.allclose(m.sigma, 0.1e-6 / math.sqrt(10), rtol=1e-12)
     assert set(m.sigma_source) == {"floor"}
     assert len(notes) == 1 and "EXX at P5 (interferometer)" in notes[0]
     assert "below the floor 0.1 µm" in notes[0]
 
 
-def test_identical_runs_written_coarsely_get_the_rounding_floor():
-    # whole arcseconds: a rounding step of 1″ = π/648000 rad, uniform: σ = step/√12 (GUM F.2.2.1),
-    # above 0.1 × the level's 4 µm/m default
+def test_runs_written_coarsely_get_the_rounding_floor():
+    # whole arcseconds, one reading 1″ off the others: a rounding step of 1″ = π/648000 rad,
+    # uniform: σ = step/√12 (GUM F.2.2.1), above 0.1 × the level's 4 µm/m default and above the
+    # pooled scatter (one 1″ deviation in 288 degrees of freedom)
     values = [str(k % 7 - 3) for k in range(36)]
-    m = merge_readings(parse_readings(_identical_runs_text("EBX", "arcsec", "level", values)))
+    m = merge_readings(parse_readings(
+        _identical_runs_text("EBX", "arcsec", "level", values, odd=(5, "1"))))
     step = math.pi / 648000
     assert step / math.sqrt(12) > 0.4e-6
     assert np.allclose(m.sigma, step / math.sqrt(12) / math.sqrt(10), rtol=1e-12)
@@ -279,7 +302,8 @@ def test_import_keeps_the_rounding_floor_of_coarse_readings():
     from diffguide.io.importers import format_long
 
     values = [str(k % 7 - 3) for k in range(36)]
-    original = parse_readings(_identical_runs_text("EBX", "arcsec", "level", values))
+    original = parse_readings(_identical_runs_text("EBX", "arcsec", "level", values,
+                                                   odd=(5, "1")))
     text = format_long(original)
     assert text.splitlines()[0].endswith(",z_mm,resolution")
     again = parse_readings(text)
@@ -346,7 +370,8 @@ _EXX_P5 = [-3.697, -3.393, -3.075, -2.761, -2.468, -2.212, -2.002, -1.839, -1.71
 
 def test_fit_with_an_identical_runs_channel_has_chi2_of_order_one(tmp_path):
     """The bundled data plus an EXX channel whose five runs are identical: before the floor the
-    channel's σ was ~1e-22 m and the fit returned χ²/dof 7e9 and rails 14 µm off the truth."""
+    channel's σ was ~1e-22 m and the fit returned χ²/dof 7e9 and rails 14 µm off the truth; the
+    runs are now merged as one run with the instrument's default σ."""
     import json
     from pathlib import Path
 
@@ -361,7 +386,7 @@ def test_fit_with_an_identical_runs_channel_has_chi2_of_order_one(tmp_path):
     assert main(["fit", "--measurements", str(data), "--out", str(out), "--no-plots",
                  "--truth", str(root / "data" / "majda2012_truth.csv"), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert "floor" in report["measurements"]["sigma_sources"]
+    assert "copies+default" in report["measurements"]["sigma_sources"]
     assert 0.5 < report["elastic"]["chi2_per_dof"] < 2.0
     # as good as the bundled data alone (0.2 µm; the README's table)
     assert report["truth"]["rms_error_um"]["elastic"]["all"] < 0.4
