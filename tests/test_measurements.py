@@ -269,6 +269,26 @@ def test_identical_runs_are_one_run_with_the_instrument_default():
     assert np.allclose(m.sigma, 0.3e-6 / math.sqrt(2), rtol=1e-12)
 
 
+def test_copies_of_coarsely_rounded_readings_keep_the_rounding():
+    # yaw in 10 µm/m steps (stated), identical runs: one reading's σ is the rounding
+    # 10/√12 = 2.89 µm/m, above the interferometer's 2 µm/m default; one reading per direction
+    values = [str(10 * (k % 3)) for k in range(36)]
+    text = _identical_runs_text("ECX", "um/m", "interferometer", values)
+    text = text.replace("instrument\n", "instrument,resolution\n", 1).replace(
+        "interferometer\n", "interferometer,10\n")
+    m = merge_readings(parse_readings(text))
+    assert np.allclose(m.sigma, 10e-6 / math.sqrt(12) / math.sqrt(2), rtol=1e-12)
+    assert set(m.sigma_source) == {"copies+default"}
+
+
+def test_an_unknown_rounding_survives_the_canonical_file():
+    from diffguide.io.importers import format_long
+
+    r = parse_readings(HEADER + ",resolution\n0,P1,0,0,EBX,1.25,um/m,0\n")[0]
+    assert r.resolution == 0.0
+    assert parse_readings(format_long([r]))[0].resolution == 0.0
+
+
 def test_runs_agreeing_below_the_instrument_floor_get_the_floor():
     # all runs identical but one reading 0.001 µm off: a pooled scatter of ~6e-5 µm, below the
     # floor max(rounding 0.001 µm / √12, 0.1 × the 1 µm default) = 0.1 µm per reading; the

@@ -35,8 +35,9 @@ class Measurements:
         n_readings: readings merged into the row. reversal: forward − backward mean (NaN when
             the row is not bidirectional). instrument: per row.
         sigma_source: per row, ``"column"``, ``"scatter"``, ``"floor"`` (the scatter raised to
-            its floor: rounding or a tenth of the default) or ``"default"``; ``"copies+..."``
-            where the runs are identical at every position and were merged as one run.
+            its floor: rounding or a tenth of the default) or ``"default"``; joined with
+            ``copies`` (``"copies+default"``, ``"column+copies"``) where the runs are identical
+            at every position and were merged as one run.
         z: per row, height of the sensing point above the table top (m).
         readings: the validated input rows (empty when built from arrays). row_of_reading:
             the merged row of each reading (−1 for a rejected outlier).

@@ -466,8 +466,9 @@ def _structure_sensitivity(linearise, x_at, x, J, ic, iq, q_bounds, cov_q, Pc, H
         if len(c) == 2:
             out[:, i] = (c[1] - c[0]) / (b - a)
         else:
-            _log.info("fit: the model failed around the structure's estimate: its share of the "
-                      "rails' σ from the Gauss-Newton term alone")
+            _log.info("fit: %s: the structure's share of the rails' σ from the Gauss-Newton "
+                      "term alone", "the model failed around the structure's estimate"
+                      if b > a else "the unknown's bounds leave no room for a step")
             out[:, i] = -Hc_inv @ (J[:, ic].T @ J[:, k])
     return out
 

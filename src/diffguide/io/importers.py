@@ -297,7 +297,7 @@ def format_long(readings, comment: str = "") -> str:
     differential pair already reduced to measuring − reference; 6 decimals, i.e. 1 pm or
     1 prad — below any instrument's resolution). The ``resolution`` column keeps the rounding
     step of the readings as read (``√12 ×`` their rounding's standard uncertainty, so a reduced
-    pair's two roundings stay in quadrature; empty where unknown)."""
+    pair's two roundings stay in quadrature; 0 where unknown)."""
     cols = [c for c in REQUIRED + OPTIONAL if c != "reference"]
     out = io.StringIO()
     for line in comment.splitlines():
@@ -307,7 +307,7 @@ def format_long(readings, comment: str = "") -> str:
         kind = "linear" if r.unit in LINEAR_UNITS else "angular"
         assert r.unit in (LINEAR_UNITS if kind == "linear" else ANGULAR_UNITS)
         sigma = "" if r.sigma is None else f"{r.sigma * 1e6:.6f}"
-        step = f"{r.resolution * math.sqrt(12) * 1e6:.6g}" if r.resolution > 0 else ""
+        step = f"{r.resolution * math.sqrt(12) * 1e6:.12g}"  # 0: unknown
         point = f'"{r.point}"' if ("," in r.point or '"' in r.point) else r.point
         out.write(
             f"{r.position * 1e3:.6f},{point},{r.xy[0] * 1e3:.6f},{r.xy[1] * 1e3:.6f},"

@@ -34,7 +34,8 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
   read there carries the Abbe terms of the table's rotation: ``EXX(z) = EXX + z·EBX``,
   ``EYX(z) = EYX − z·EAX``; the angles do not depend on it.
 - ``resolution``: the rounding step ``q`` of ``value`` (and ``reference``) as the instrument
-  wrote them, in ``unit`` (≥ 0; empty or 0: the unit of the last digit written, as by default).
+  wrote them, in ``unit`` (≥ 0; empty: the unit of the last digit written, as by default; 0:
+  unknown, no rounding floor).
   ``diffguide import`` writes it, so that a file converted to 6 decimals keeps the original
   rounding (the floor of step 3 below).
 
@@ -71,8 +72,9 @@ zero — and position:
    direction) — except where a channel's runs are **identical at every position** (copies of
    one run, or a display coarser than the noise): their mean is no better than one reading and
    they say nothing of the repeatability, so each direction counts as one reading (``n = 1``)
-   with the ``sigma`` column or else the instrument default; the rows are marked ``"copies+..."``
-   and a note names the channel. (Copying one noisy run of the bundled data's yaw five times
+   with the ``sigma`` column or else the instrument default (never below the readings' rounding);
+   the rows' source then includes ``copies`` (``"copies+default"``, ``"column+copies"``) and a
+   note names the channel. (Copying one noisy run of the bundled data's yaw five times
    gave, with the floor, χ²/dof 1.9, no convergence and rails 5.6 µm off; merged as one run the
    fit is as good as with the real runs.)
 
@@ -433,7 +435,7 @@ def merge_readings(readings, source: str = "<readings>",
     """Merge runs and directions (see the module docstring) into :class:`Measurements`.
 
     ``notes`` (a list) receives a line for every channel whose pooled scatter was raised to its
-    floor (step 3)."""
+    floor (step 3) and for every channel merged as copies of one run (step 4)."""
     readings = tuple(readings)
     if not readings:
         raise ValueError(f"{source}: no measurements")
@@ -470,12 +472,12 @@ def merge_readings(readings, source: str = "<readings>",
               for rows in dirs.values() for r in rows if r.sigma is not None}
     for p, q, inst in sorted(copies) if notes is not None else ():
         quantity = QUANTITIES[q]
-        one = ("the sigma column" if (p, q, inst) in stated else
+        one = ("its sigma column" if (p, q, inst) in stated else
                f"the instrument's default {DEFAULT_SIGMA[(inst, _kind(quantity))] * 1e6:g} "
-               f"{_user_unit(quantity)}")
+               f"{_user_unit(quantity)} (or the readings' rounding, if coarser)")
         notes.append(f"{source}: {quantity} at {names[p]} ({inst}): the runs are identical at "
-                     f"every position (copies of one run?): merged as one run, σ of one "
-                     f"reading {one}")
+                     f"every position read more than once (copies of one run?): merged as one "
+                     f"run, σ of one reading {one}")
     # the finest rounding step written in each channel (0: unknown)
     res = {}
     for (p, q, inst, _), dirs in groups.items():
@@ -539,7 +541,8 @@ def merge_readings(readings, source: str = "<readings>",
                     sig.append(scatter[ch])
                     sources.add("floor" if ch in floored else "scatter")
                 else:
-                    sig.append(DEFAULT_SIGMA[(inst, _kind(QUANTITIES[q]))])
+                    default = DEFAULT_SIGMA[(inst, _kind(QUANTITIES[q]))]
+                    sig.append(max(default, res.get(ch, 0.0)) if ch in copies else default)
                     sources.add("default")
             if ch in copies:  # one reading's worth: the mean of copies is no better than one
                 sources.add("copies")
