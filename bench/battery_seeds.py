@@ -83,8 +83,12 @@ def table(records: list[dict]) -> str:
         met = int(np.sum((cov >= 0.85) & (worst >= 0.70)))
         z = np.array([_z(r, "thickness") for r in rs if "thickness" in r])
         det = [_z(r, "preload") for r in rs if r.get("preload", {}).get("determined")]
-        det_txt = f"{len(det)}/{len(rs)}" + (
-            f" ({', '.join(f'{v:+.1f}' for v in sorted(det))})" if det else "")
+        det_txt = f"{len(det)}/{len(rs)}"
+        if len(det) > 4:
+            det_txt += (f" ({min(det):+.1f} to {max(det):+.1f}, RMS "
+                        f"{np.sqrt(np.mean(np.square(det))):.2f})")
+        elif det:
+            det_txt += f" ({', '.join(f'{v:+.1f}' for v in sorted(det))})"
         lines.append(
             f"| {name} | {len(rs)}{f' (+{raised} raised)' if raised else ''} | {met}/{len(rs)} | "
             f"{100 * cov.min():.0f} / {100 * np.median(cov):.0f} % | {100 * worst.min():.0f} % | "
