@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 import numpy as np  # noqa: E402
-from battery.cases import CASES, run_case  # noqa: E402
+from battery.cases import CASES, command_line, run_case  # noqa: E402
 
 
 def record(name: str, seed: int) -> dict:
@@ -101,15 +101,10 @@ def table(records: list[dict]) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("cases", nargs="*", help=f"default all: {', '.join(CASES)}")
     ap.add_argument("--first", type=int, default=1, help="first seed (default 1)")
     ap.add_argument("--last", type=int, default=20, help="last seed (default 20)")
     ap.add_argument("--jsonl", help="JSON-lines file of the records (appended; resumed)")
-    args = ap.parse_args()
-    names = args.cases or list(CASES)
-    unknown = [n for n in names if n not in CASES]
-    if unknown:
-        ap.error(f"unknown case(s) {', '.join(unknown)}; the cases: {', '.join(CASES)}")
+    args, names = command_line(ap)
     records = []
     if args.jsonl and Path(args.jsonl).exists():
         records = [json.loads(line) for line in Path(args.jsonl).read_text().splitlines() if line]

@@ -26,7 +26,7 @@ jax.config.update("jax_enable_x64", True)
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from battery.cases import CASES, result  # noqa: E402
+from battery.cases import command_line, result  # noqa: E402
 
 
 def _row(res) -> tuple[str, dict]:
@@ -86,13 +86,8 @@ def _structure(res) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("cases", nargs="*", help=f"default all: {', '.join(CASES)}")
     ap.add_argument("--json", help="also write the numbers per case to this JSON file")
-    args = ap.parse_args()
-    names = args.cases or list(CASES)
-    unknown = [n for n in names if n not in CASES]
-    if unknown:
-        ap.error(f"unknown case(s) {', '.join(unknown)} (allowed {', '.join(CASES)})")
+    args, names = command_line(ap)
     print(
         f"<!-- jax {jax.__version__} on {platform.processor() or platform.machine()}, "
         f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}, float64 -->"

@@ -370,6 +370,19 @@ CASES: dict[str, Callable[[], Case]] = {
 }
 
 
+def command_line(ap, argv=None):
+    """The bench scripts' command line: ``ap`` (an ``argparse.ArgumentParser`` with the script's
+    own options) with a positional ``cases`` added, parsed; returns ``(args, names)``, the named
+    cases in order (all of :data:`CASES` when none). An unknown case exits with the parser's
+    usage error naming it and the cases there are."""
+    ap.add_argument("cases", nargs="*", help=f"default all: {', '.join(CASES)}")
+    args = ap.parse_args(argv)
+    unknown = [n for n in args.cases if n not in CASES]
+    if unknown:
+        ap.error(f"unknown case(s) {', '.join(unknown)} (the cases: {', '.join(CASES)})")
+    return args, list(args.cases) or list(CASES)
+
+
 # ----------------------------------------------------------------------------- simulation
 
 _MACHINES: dict = {}  # module-level cache: each distinct machine is built (condensed) once
