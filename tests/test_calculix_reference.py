@@ -70,7 +70,7 @@ CASES = [(m, c) for m, spec in META["machines"].items() for c in spec["cases"]]
 def machines():
     """Each stored machine, built once from its stored TOML."""
     return {
-        m: dg.build_machine(dg.load_config(DATA / spec["toml"]))
+        m: dg.build_machine(dg.spec_from_config(dg.load_config(DATA / spec["toml"])))
         for m, spec in META["machines"].items()
     }
 

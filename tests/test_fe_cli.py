@@ -23,9 +23,9 @@ def test_table_command_writes_plot_and_csv(tmp_path, capsys):
     # order of magnitude: the 310 mm overhang beyond the carriages as a cantilever plate strip,
     # w = q L⁴ / 8 D (q = ρ g t, D = E t³ / 12 (1 - ν²)) ≈ 2.3 µm; the table also rotates at the
     # carriages, so the corner sag is larger but of the same order
-    from diffguide.presets import MAJDA2012_TABLE
+    from diffguide.presets import majda2012
 
-    t = MAJDA2012_TABLE["thickness"]
+    t = majda2012().table.thickness
     q, L, D = 7200 * 9.81 * t, 0.31, 110e9 * t**3 / 12 / (1 - 0.26**2)
     w_cant = q * L**4 / (8 * D) * 1e6
     assert w_cant < sag < 3 * w_cant

@@ -14,12 +14,12 @@ from diffguide.fe import (
     assemble,
     banded,
     condense,
-    majda2012_table,
     solve_fixed,
     table_mesh,
 )
 from diffguide.fe.banded import block_layout
 from diffguide.fe.materials import Material
+from diffguide.machine.majda2012 import majda2012_table
 
 
 @pytest.fixture(scope="module")

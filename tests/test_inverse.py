@@ -33,7 +33,7 @@ def _load_maker():
 
 @pytest.fixture(scope="module")
 def case():
-    from diffguide.majda2012 import majda2012_machine
+    from diffguide.machine.majda2012 import majda2012_machine
 
     mk = _load_maker()
     errors = mk.simulate()  # fine mesh, noise free
@@ -173,7 +173,7 @@ _FAMILY = {}
 
 def _family(machine, meas):
     """The majda2012 family (thickness 25–100 mm, preload 2–16 %) at the measurement points."""
-    from diffguide.majda2012 import majda2012_machine
+    from diffguide.machine.majda2012 import majda2012_machine
 
     key = tuple(meas.point_names)
     if key not in _FAMILY:
@@ -187,7 +187,7 @@ def _family(machine, meas):
 def test_interpolated_table_matches_direct_condensation(case):
     """Between the interpolation nodes the family's table equals a direct condensation at that
     thickness to 1e-5 relative; the preload factor scales the element preload exactly."""
-    from diffguide.majda2012 import majda2012_machine
+    from diffguide.machine.majda2012 import majda2012_machine
 
     _, machine, meas, _ = case
     fam = _family(machine, meas)

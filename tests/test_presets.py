@@ -1,8 +1,8 @@
 """The historical construction paths of the ``majda2012`` preset build the same objects.
 
 diffguide 0.1 had two ways to the paper's machine: the preset functions
-(``majda2012_machine()``, ``majda2012_carriage()``, ``fe.majda2012_table()``) and the
-configuration path (``build_machine(default_config())``, ``carriage_from_config``,
+(``majda2012_machine()``, ``majda2012_carriage()``, ``majda2012_table()``) and the
+configuration path (``build_machine(spec_from_config(default_config()))``, ``carriage_from_config``,
 ``table_from_config``). These tests pinned that they agree leaf by leaf before the two were
 unified; both now start from ``diffguide.presets.majda2012()`` (the configuration path through
 its TOML mapping, ``io.config.KEYS``), and the tests keep that mapping faithful.
@@ -14,11 +14,15 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from diffguide.fe import majda2012_table
 from diffguide.guideway import majda2012_carriage
-from diffguide.io.config import default_config
-from diffguide.machine.build import build_machine, carriage_from_config, table_from_config
-from diffguide.machine.majda2012 import majda2012_machine
+from diffguide.io.config import (
+    carriage_from_config,
+    default_config,
+    spec_from_config,
+    table_from_config,
+)
+from diffguide.machine.build import build_machine
+from diffguide.machine.majda2012 import majda2012_machine, majda2012_table
 
 
 def assert_same_tree(a, b, rtol=1e-12):
@@ -37,7 +41,7 @@ def assert_same_tree(a, b, rtol=1e-12):
 def test_machine_paths_agree():
     cfg = default_config()
     a = majda2012_machine(nx=6, ny=4)
-    b = build_machine(cfg, nx=6, ny=4)
+    b = build_machine(spec_from_config(cfg), nx=6, ny=4)
     assert_same_tree(a, b)
     assert eqx.tree_equal(a.point_names, b.point_names)
 
@@ -45,7 +49,8 @@ def test_machine_paths_agree():
 def test_rivin_machine_paths_agree():
     cfg = default_config()
     cfg["carriage"]["law"] = "rivin"
-    assert_same_tree(majda2012_machine(nx=4, ny=2, law="rivin"), build_machine(cfg, nx=4, ny=2))
+    assert_same_tree(majda2012_machine(nx=4, ny=2, law="rivin"),
+                     build_machine(spec_from_config(cfg), nx=4, ny=2))
 
 
 def test_carriage_paths_agree():

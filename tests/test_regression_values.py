@@ -145,7 +145,7 @@ def test_roll_left_after_compensating_with_p1(paper):
 
 
 def test_corner_roll_spread_and_roll_ranges():
-    machine = dg.build_machine(dg.default_config())
+    machine = dg.build_machine(dg.spec_from_config(dg.default_config()))
     positions = np.linspace(-0.35, 0.35, 36)  # the notebook's sweep
     je = dg.joint_errors(machine, paper_variant(1), positions)
     roll = je.user_units()[:, CORNERS, EAX]  # µrad, P1..P4
