@@ -5,6 +5,7 @@ import sys
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import diffguide
@@ -50,6 +51,32 @@ def test_old_from_imports_and_attributes():
     from diffguide.machine import Machine, equilibrium, point_motion, rigid_body_map  # noqa: F401
 
     assert HertzBall is diffguide.HertzBall
+
+
+def test_old_names_of_moved_functions_and_dicts_still_work_and_warn():
+    """diffguide 0.1's names that moved within a module's layer (the tests use the new ones):
+    ``fe.majda2012_table``, ``build.carriage_from_config``/``table_from_config``,
+    ``build_machine(config dict)`` and ``presets.MAJDA2012_TABLE`` — each still answers, with a
+    DeprecationWarning naming where it went."""
+    import diffguide.fe as fe
+    import diffguide.machine.build as build
+    import diffguide.presets as presets
+    from diffguide.io import config
+    from diffguide.machine.majda2012 import majda2012_table
+
+    with pytest.warns(DeprecationWarning, match=r"diffguide\.machine\.majda2012"):
+        assert fe.majda2012_table is majda2012_table
+    for name in ("carriage_from_config", "table_from_config"):
+        with pytest.warns(DeprecationWarning, match=rf"diffguide\.io\.config\.{name}"):
+            assert getattr(build, name) is getattr(config, name)
+    with pytest.warns(DeprecationWarning, match=r"presets\.majda2012\(\)"):
+        assert presets.MAJDA2012_TABLE["thickness"] == presets.majda2012().table.thickness
+    cfg = config.default_config()
+    with pytest.warns(DeprecationWarning, match="MachineSpec"):
+        old = build.build_machine(cfg, nx=4, ny=2)
+    new = build.build_machine(config.spec_from_config(cfg), nx=4, ny=2)
+    assert old.point_names == new.point_names
+    assert np.array_equal(np.asarray(old.table.K), np.asarray(new.table.K))
 
 
 @pytest.mark.parametrize(
