@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 import numpy as np  # noqa: E402
-from battery.cases import CASES, command_line, run_case  # noqa: E402
+from battery.cases import CASES, FIT_PRIORS, command_line, run_case  # noqa: E402
 
 
 def record(name: str, seed: int) -> dict:
@@ -50,7 +50,8 @@ def record(name: str, seed: int) -> dict:
         out.update(cov=s.overall_coverage, worst=s.worst_coverage, rel=s.overall_rel,
                    worst_rel=s.worst_rel, ratio=s.overall_rms_um / s.overall_sigma_rms_um,
                    chi2=float(res.fit.chi2_dof), converged=bool(res.fit.converged),
-                   truth={"thickness": case.thickness or 0.05, "preload": case.preload or 0.08})
+                   truth={"thickness": case.thickness or FIT_PRIORS[0][0],
+                          "preload": case.preload or FIT_PRIORS[1][0]})
         for key, v in st.items():
             out[key] = {"value": v["value"], "sigma_log": float(v["sigma_log"]),
                         "determined": bool(v["determined"])}

@@ -158,10 +158,14 @@ def maximise_marginal(score, q0, bounds, *, h: float = STEP, max_iter: int = MAX
     lo, hi = bounds[:, 0] + h, bounds[:, 1] - h
     q = np.clip(q, lo, hi)
     count = [0]
+    seen: dict = {}  # the score at points already evaluated (widen starts where Newton stopped)
 
     def f(v):
-        count[0] += 1
-        return float(score(v))
+        key = np.asarray(v, float).tobytes()
+        if key not in seen:
+            count[0] += 1
+            seen[key] = float(score(v))
+        return seen[key]
 
     info = {"iterations": 0, "at_bound": [False] * q.size, "message": "converged"}
     cov = np.eye(q.size)

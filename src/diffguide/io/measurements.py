@@ -238,9 +238,8 @@ def _parse_row(row: dict, line: int) -> Reading:
         _field_error("unit", unit, f"not a unit of {quantity}", allowed)
     factor = units[key]
     value = _plausible(row, "value", unit, factor, quantity)
-    paired = bool((row.get("reference") or "").strip())
     steps = [written_step(row["value"])]
-    if paired:  # differential pair: measuring minus reference
+    if (row.get("reference") or "").strip():  # differential pair: measuring minus reference
         value -= _plausible(row, "reference", unit, factor, quantity)
         steps.append(written_step(row["reference"]))
     if (row.get("resolution") or "").strip():  # the stated rounding step replaces the digits'
@@ -468,11 +467,11 @@ def merge_readings(readings, source: str = "<readings>",
     # runs identical at every position: copies of one run (or a display coarser than the noise),
     # which carry the information of one run — merged as one reading per direction
     copies = {ch for ch in dof if spread[ch] == 0.0}
-    stated = {(p, q, inst) for (p, q, inst, _), dirs in groups.items()
-              for rows in dirs.values() for r in rows if r.sigma is not None}
     for p, q, inst in sorted(copies) if notes is not None else ():
         quantity = QUANTITIES[q]
-        one = ("its sigma column" if (p, q, inst) in stated else
+        stated = any(r.sigma is not None for (pp, qq, ii, _), dirs in groups.items()
+                     if (pp, qq, ii) == (p, q, inst) for rows in dirs.values() for r in rows)
+        one = ("its sigma column" if stated else
                f"the instrument's default {DEFAULT_SIGMA[(inst, _kind(quantity))] * 1e6:g} "
                f"{_user_unit(quantity)} (or the readings' rounding, if coarser)")
         notes.append(f"{source}: {quantity} at {names[p]} ({inst}): the runs are identical at "
