@@ -12,11 +12,17 @@ drift and outliers — drawn anew) and prints one markdown row per case:
 - the thickness' z-score ``ln(t̂/t)/σ_ln t`` (RMS and largest |z|: about 1 where its σ is
   honest) and on how many seeds the preload came back "determined", with their z-scores.
 
+With ``--layout planned`` every case is measured with ``cases.PLANNED`` instead of its own
+layout (the bundled layout plus what ``diffguide plan`` adds for 8 more levels and 2 more
+interferometers). A second table gives each case's worst-profile error (% of that profile's
+truth RMS: median, largest, and on how many seeds it is within the wrong-structure cases' 15 %).
+
 Records go to a JSON-lines file as they come (``--jsonl``; an existing file is resumed: the
 case/seed pairs in it are not run again). About 2–30 s a fit on 2 cores (the 141-position case
 is the slowest). Run:
 
     python bench/battery_seeds.py [CASE ...] [--first 1] [--last 20] [--jsonl FILE]
+        [--layout own|planned]
 """
 
 import argparse
@@ -34,15 +40,18 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 import numpy as np  # noqa: E402
-from battery.cases import CASES, FIT_PRIORS, command_line, run_case  # noqa: E402
+from battery.cases import CASES, FIT_PRIORS, command_line, planned, run_case  # noqa: E402
 
 
-def record(name: str, seed: int) -> dict:
-    """Run case ``name`` with noise seed ``seed``; the numbers of one row of the JSON lines."""
+def record(name: str, seed: int, layout: str = "own") -> dict:
+    """Run case ``name`` with noise seed ``seed`` and its own or the planned layout; the
+    numbers of one row of the JSON lines."""
     case = dataclasses.replace(CASES[name](), seed=seed)
+    if layout == "planned":
+        case = dataclasses.replace(planned(case), name=name)
     t0 = time.perf_counter()
     res = run_case(case)
-    out = {"name": name, "seed": seed}
+    out = {"name": name, "seed": seed, "layout": layout}
     if res.fit is None:
         out["error"] = res.error
     else:
@@ -100,15 +109,30 @@ def table(records: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def error_table(records: list[dict]) -> str:
+    """Markdown: each case's worst-profile error over the seeds (% of the profile's truth RMS)."""
+    lines = ["| case | seeds | worst profile error, median (largest) | within 15 % |",
+             "|---|---|---|---|"]
+    for name in CASES:
+        rel = np.array([r["worst_rel"] for r in records if r["name"] == name and "cov" in r])
+        if rel.size:
+            lines.append(f"| {name} | {rel.size} | {100 * np.median(rel):.0f} % "
+                         f"({100 * rel.max():.0f} %) | {int(np.sum(rel <= 0.15))}/{rel.size} |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--first", type=int, default=1, help="first seed (default 1)")
     ap.add_argument("--last", type=int, default=20, help="last seed (default 20)")
     ap.add_argument("--jsonl", help="JSON-lines file of the records (appended; resumed)")
+    ap.add_argument("--layout", choices=("own", "planned"), default="own",
+                    help="each case's own layout (default) or cases.PLANNED")
     args, names = command_line(ap)
     records = []
     if args.jsonl and Path(args.jsonl).exists():
         records = [json.loads(line) for line in Path(args.jsonl).read_text().splitlines() if line]
+    records = [r for r in records if r.get("layout", "own") == args.layout]
     done = {(r["name"], r["seed"]) for r in records}
     sink = open(args.jsonl, "a") if args.jsonl else None  # noqa: SIM115 — appended as it goes
     try:
@@ -116,7 +140,7 @@ def main() -> None:
             for seed in range(args.first, args.last + 1):
                 if (name, seed) in done:
                     continue
-                r = record(name, seed)
+                r = record(name, seed, args.layout)
                 records.append(r)
                 print(f"{name} seed {seed}: " + (
                     f"coverage {100 * r['cov']:.0f} % / worst {100 * r['worst']:.0f} %"
@@ -128,9 +152,11 @@ def main() -> None:
     finally:
         if sink:
             sink.close()
-    print(f"<!-- seeds {args.first}-{args.last}; jax {jax.__version__} -->")
-    print(table([r for r in records if r["name"] in names
-                 and args.first <= r["seed"] <= args.last]))
+    print(f"<!-- seeds {args.first}-{args.last}, layout {args.layout}; jax {jax.__version__} -->")
+    chosen = [r for r in records if r["name"] in names and args.first <= r["seed"] <= args.last]
+    print(table(chosen))
+    print()
+    print(error_table(chosen))
 
 
 if __name__ == "__main__":

@@ -42,16 +42,19 @@ XFAIL: dict[tuple[str, str], str] = {
     "known (oracle) 7/21/9/30 %: the bound is below what these data hold. The miss is the rails' "
     "horizontal half-difference, 22 % (oracle 24 %); means and vertical difference 3-7 %. Fitted "
     "with the machine that made the data, worst profile 30 %, 27 % with the half-difference's "
-    "prior scale chosen in hindsight: test_the_15_percent_bound_is_beyond_the_data",
+    "prior scale chosen in hindsight: test_the_15_percent_bound_is_beyond_the_data"
+    "; with the planned layout it holds: test_the_15_percent_bound_holds_with_the_planned_layout",
     ("error", "preload_2pct"): _NOW + "profile errors 10/24/7/24 %: the preload is not determined "
     "by these data (reported as such) and the thickness takes up part of its effect; with the "
     "structure known (oracle) 9/22/5/20 %; the miss is the horizontal half-difference, 22 % "
     "(oracle 19 %); means and vertical difference 3-8 %. With the machine that made the data "
-    "21 % (22 % at the hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data",
+    "21 % (22 % at the hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data"
+    "; with the planned layout it holds: test_the_15_percent_bound_holds_with_the_planned_layout",
     ("error", "preload_13pct"): _NOW + "profile errors 6/8/5/16 % (joint estimate 6/16/5/21 %); "
     "with the structure known (oracle) 6/8/5/17 %; horizontal half-difference 10 % (oracle "
     "11 %), the other combinations 3-7 %. With the machine that made the data 18 % (17 % at the "
-    "hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data",
+    "hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data"
+    "; with the planned layout it holds: test_the_15_percent_bound_holds_with_the_planned_layout",
 }
 
 
@@ -360,6 +363,30 @@ def test_the_15_percent_bound_is_beyond_the_data(name):
     assert sc.rel[worst] > 0.15, sc.rel
     assert sc.sigma_rms_um[worst] >= 0.5 * sc.rms_um[worst], (sc.rms_um, sc.sigma_rms_um)
     assert sc.coverage[worst] >= 0.70, sc.coverage
+
+
+@pytest.mark.parametrize("name", WRONG_STRUCTURE)
+def test_the_15_percent_bound_holds_with_the_planned_layout(name):
+    """What the bound needs is more data, and the planner says which: the same wrong-structure
+    case (truth, machine, noise seed, fit with the structure unknown) measured with
+    ``cases.PLANNED`` — the bundled layout plus the 8 levels and 2 interferometers that
+    ``diffguide plan --start bundled`` adds — meets every bound of the battery: every profile
+    within 15 % of its truth RMS, the truth inside ±2σ at ≥ 85 % of the points and ≥ 70 % on
+    every profile. Measured on the cases' own seeds: worst profile 8/12/10/8 % (30 mm, 70 mm,
+    2 %, 13 %). A single draw can still miss: over seeds 1–10 (``bench/battery_seeds.py
+    --layout planned``) the worst profile is within 15 % on 10/6/9/8 of 10 seeds, against
+    8/0/0/2 with the bundled layout (README, "With more instruments").
+
+    The structure is not asserted here: on the 2 % case the thickness comes back 62 ± 6 mm
+    (2.0σ from 50 mm) with the preload undetermined (7 ± 5 %). That case's preload sits at its
+    prior's 2σ edge, and the posterior correlates the two (0.8). The posterior itself is right:
+    integrated on a 13 × 13 grid it gives the Laplace σ within 4 %, and the truth's joint
+    −2 log p is 3.4 above the estimate's."""
+    res = cases.run_case(cases.planned(CASES[name]()))
+    assert res.fit is not None, res.error
+    sc = res.score
+    assert sc.worst_rel <= 0.15, sc.rel
+    assert sc.overall_coverage >= 0.85 and sc.worst_coverage >= 0.70, sc.coverage
 
 
 @pytest.mark.parametrize("name", _params("structure", WRONG_STRUCTURE))

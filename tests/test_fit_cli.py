@@ -239,3 +239,36 @@ def test_output_folder_has_the_usual_permissions(tmp_path):
     assert mode == (tmp_path / "ref").stat().st_mode & 0o777, oct(mode)
     assert (tmp_path / "out" / "a.txt").read_text() == "x\n"
     assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]
+
+
+def test_layout_csv_is_the_measured_layout_and_plan_takes_it_as_start(out_dir, tmp_path, capsys):
+    """layout.csv lists every point and instrument kind of the measurement file (read here
+    independently of the fit) in ``diffguide plan``'s plan format, and ``plan --start`` keeps
+    it: the plan begins with those placements and adds the budget on top."""
+    rows = list(csv.DictReader((out_dir / "layout.csv").open()))
+    seen = {}
+    for r in csv.DictReader(ln for ln in DATA.open() if not ln.startswith("#")):
+        kind = "level" if r["instrument"] == "level" else "interferometer"
+        seen.setdefault((kind, r["point"], float(r["x_mm"]), float(r["y_mm"])),
+                        set()).add(r["quantity"])
+    assert {(r["instrument"], r["point"], float(r["x_mm"]), float(r["y_mm"])): set(
+        r["reads"].split("+")) for r in rows} == seen
+    plan_out = tmp_path / "plan"
+    rc = main(["plan", "--start", str(out_dir / "layout.csv"), "--levels", "1",
+               "--interferometers", "0", "--grid", "3x3", "--positions", "8", "--structure",
+               "fixed", "--draws", "1", "--mesh", "8x4", "--no-plots", "--out", str(plan_out),
+               "--quiet"])
+    assert rc == 0, capsys.readouterr().err
+    rep = json.loads((plan_out / "report.json").read_text())
+    assert [(p["instrument"], p["x_mm"], p["y_mm"]) for p in rep["start"]] == [
+        (k, x, y) for (k, _, x, y) in sorted(seen, key=lambda t: t[1])]
+    assert len(rep["steps"]) == 1 and rep["steps"][0]["instrument"] == "level"
+    # the comparison defaults to the start plan: what the one added level buys
+    assert rep["compare"]["placements"] == rep["start"]
+    assert rep["plan"]["worst_profile_sigma_um"] <= rep["compare"]["worst_profile_sigma_um"]
+    assert rep["steps"][0]["before"] == pytest.approx(rep["compare"]["worst_profile_sigma_um"],
+                                                      rel=1e-9)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("instrument,point,x_mm,y_mm\nlaser,P1,0,0\n")
+    assert main(["plan", "--start", str(bad), "--out", str(tmp_path / "no"), "--quiet"]) == 2
+    assert "bad.csv:2: field 'instrument'" in capsys.readouterr().err

@@ -35,7 +35,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "values in µm, mm, nm, in, µm/m, mm/m, µrad, mrad, arcsec, arcmin or deg). Output "
         "folder (written atomically): rails.csv (and rails_rigid.csv with --rigid) "
         "(rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um), fit.csv "
-        "(every input row with fitted and residual, in its unit), report.json, profiles.png, "
+        "(every input row with fitted and residual, in its unit), layout.csv (the measured "
+        "layout, for 'diffguide plan --start'), report.json, profiles.png, "
         "curves.png. Exit codes: 0 converged; 3 results written but the fit did not converge "
         "(flagged in report.json); 2 bad input or options (nothing written).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -471,6 +472,7 @@ def run(args) -> int:
             if "_rigid" in fits:
                 files["rails_rigid.csv"] = _rails_csv(s_m, *profiles["_rigid"])
             files["fit.csv"] = _fit_csv(meas, fits)
+            files["layout.csv"] = layout_csv(meas)
             report["total_seconds"] = time.perf_counter() - t_start
             files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
             staged.write(files)
@@ -487,8 +489,17 @@ def run(args) -> int:
         say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
              + (", rigid table {:.3f} µm".format(e["rigid_table"]["all"]) if "_rigid" in fits
                 else ""))
-    for line in undetermined_lines(report["identifiability"], elastic.waviness):
+    blind = undetermined_lines(report["identifiability"], elastic.waviness)
+    for line in blind:
         say(args, line)
+    if blind:
+        import shlex
+
+        plan = (["--config", args.config] if args.config else ["--preset", args.preset]) + (
+            ["--mesh", args.mesh] if getattr(args, "mesh", None) else [])
+        plan += ["--start", str(Path(args.out) / "layout.csv")]
+        say(args, "what more instruments would determine there: diffguide plan "
+                  f"{shlex.join(plan)} --out PLAN_DIR")
     say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
     if not elastic.converged:
         print(f"diffguide fit: warning: the fit did not converge ({elastic.message}); the results "
@@ -496,6 +507,36 @@ def run(args) -> int:
               file=sys.stderr)
     sys.stdout.flush()
     return 0 if elastic.converged else EXIT_NOT_CONVERGED
+
+
+#: What ``diffguide plan`` calls the instrument that reads each quantity (an interferometer's
+#: angular optics read EBX/ECX, its straightness optics EYX/EZX; positioning is not planned).
+_PLAN_KIND = {("level", "EAX"): "level", ("level", "EBX"): "level",
+              ("interferometer", "EAX"): "interferometer",
+              ("interferometer", "EBX"): "interferometer",
+              ("interferometer", "ECX"): "interferometer",
+              ("interferometer", "EYX"): "straightness",
+              ("interferometer", "EZX"): "straightness"}
+
+
+def layout_csv(meas) -> str:
+    """The measured layout in ``diffguide plan``'s plan format (``--start``/``--compare``):
+    ``instrument,point,x_mm,y_mm,reads`` — one row per point and instrument kind (``level``,
+    ``interferometer`` for angular optics, ``straightness`` for straightness optics; positioning
+    channels, which the planner does not model, are left out), ``reads`` the quantities read
+    there, ``+``-joined."""
+    from ..inverse.data import QUANTITIES
+    from ..io.measurements import format_csv
+
+    reads: dict[tuple[int, str], list[str]] = {}
+    for p, q, inst in meas.channels:
+        kind = _PLAN_KIND.get((inst, QUANTITIES[q]))
+        if kind is not None and QUANTITIES[q] not in reads.setdefault((p, kind), []):
+            reads[(p, kind)].append(QUANTITIES[q])
+    rows = [{"instrument": kind, "point": meas.point_names[p],
+             "x_mm": float(meas.points_xy[p][0] * 1e3), "y_mm": float(meas.points_xy[p][1] * 1e3),
+             "reads": "+".join(qs)} for (p, kind), qs in sorted(reads.items())]
+    return format_csv(rows, ("instrument", "point", "x_mm", "y_mm", "reads"))
 
 
 def undetermined_lines(ident: dict, waviness: float) -> list[str]:

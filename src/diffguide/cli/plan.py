@@ -82,10 +82,19 @@ def add_parser(sub) -> argparse.ArgumentParser:
     )
     g.add_argument("--sites", metavar="SITES.csv", help="candidate sites: name,x_mm,y_mm")
     p.add_argument(
+        "--start",
+        metavar="PLAN.csv|bundled",
+        default=None,
+        help="placements already decided (same format as --compare; the layout.csv that "
+        "'diffguide fit' writes works as it is): kept, and the instruments of --levels, "
+        "--interferometers, --straightness are added to them (default: none, plan from scratch)",
+    )
+    p.add_argument(
         "--compare",
         metavar="PLAN.csv|bundled",
-        default="bundled",
-        help="a plan to compare with (default: bundled); 'none' for no comparison",
+        default=None,
+        help="a plan to compare with (default: the --start plan where given, else bundled); "
+        "'none' for no comparison",
     )
     p.add_argument(
         "--positions",
@@ -206,35 +215,42 @@ def _sites(args, cfg) -> dict:
 
 
 def _compare(args, cfg, sites):
-    """The user's plan as ``(kind, site)``, adding its sites to ``sites`` where new."""
-    if args.compare in (None, "none"):
-        return None
-    if args.compare == "bundled":
+    """The plan to compare with (``--compare``; by default the ``--start`` plan where given,
+    else the bundled layout) as ``(kind, site)``, adding its sites to ``sites`` where new."""
+    which = args.compare if args.compare is not None else (args.start or "bundled")
+    return None if which == "none" else _placements(which, "--compare", cfg, sites)
+
+
+def _placements(which, option, cfg, sites):
+    """A plan given as ``bundled`` or a CSV file (``instrument,point,x_mm,y_mm``; instrument
+    level, interferometer or straightness) as ``(kind, site)``, adding its sites to ``sites``
+    where new; ``option`` names the command-line option in errors."""
+    if which == "bundled":
         hx, hy = cfg["table"]["length_mm"] / 2 - 50, cfg["table"]["width_mm"] / 2 - 50
         rows = [("level", x, y) for x, y in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))]
         rows.append(("interferometer", 0.0, 0.0))
         where = "bundled layout"
     else:
         rows, named = [], {}
-        for line, row in _rows(args.compare, ("instrument", "x_mm", "y_mm"), ("point",)):
+        for line, row in _rows(which, ("instrument", "x_mm", "y_mm"), ("point", "reads")):
             kind = row["instrument"]
             if kind not in QUANTITY_CHOICES:
                 raise ValueError(
-                    f"{args.compare}:{line}: field 'instrument': must be one of "
+                    f"{which}:{line}: field 'instrument': must be one of "
                     f"{', '.join(QUANTITY_CHOICES)}, got {kind!r}"
                 )
-            x, y = (_number(args.compare, line, row, k) for k in ("x_mm", "y_mm"))
-            _on_table(row.get("point", "?"), x, y, cfg, f"{args.compare}:{line}")
+            x, y = (_number(which, line, row, k) for k in ("x_mm", "y_mm"))
+            _on_table(row.get("point", "?"), x, y, cfg, f"{which}:{line}")
             if row.get("point"):
                 first = named.setdefault(row["point"], (line, x, y))
                 if abs(first[1] - x) > 1e-6 or abs(first[2] - y) > 1e-6:
                     raise ValueError(
-                        f"{args.compare}:{line}: field 'point': {row['point']!r} is at "
+                        f"{which}:{line}: field 'point': {row['point']!r} is at "
                         f"({x:g}, {y:g}) mm here but at ({first[1]:g}, {first[2]:g}) mm on line "
                         f"{first[0]}; one name, one location"
                     )
             rows.append((kind, x, y))
-        where = args.compare
+        where = which
     out = []
     for kind, x, y in rows:
         name = next(
@@ -250,7 +266,7 @@ def _compare(args, cfg, sites):
             sites[name] = (x * 1e-3, y * 1e-3)
         out.append((kind, name))
     if len(set(out)) != len(out):
-        raise ValueError(f"{where}: the same instrument twice on one site")
+        raise ValueError(f"{option} {where}: the same instrument twice on one site")
     return out
 
 
@@ -356,8 +372,9 @@ def run(args) -> int:
     instruments = _instruments(args)
     sites = _sites(args, cfg)
     candidates = tuple(sites)
+    start = [] if args.start is None else _placements(args.start, "--start", cfg, sites)
     compare = _compare(args, cfg, sites)
-    used = {k for k, _ in compare or ()}
+    used = {k for k, _ in (compare or []) + start}
     instruments = [i for i in instruments if i.count > 0 or i.kind in used]
     work = None
     if args.work_point is not None:
@@ -407,6 +424,7 @@ def run(args) -> int:
         instruments=instruments,
         criterion=args.criterion,
         compare=compare,
+        start=start,
         rail_rms=args.rail_rms_um * 1e-6,
         runs=args.runs,
         bidirectional=not args.unidirectional,
@@ -447,6 +465,10 @@ def run(args) -> int:
         "draws": args.draws,
         "gauge": "each profile's mean and each plane's common slope removed",
         "candidate_sites": {n: [sites[n][0] * 1e3, sites[n][1] * 1e3] for n in candidates},
+        "start": [
+            {"instrument": k, "site": n, "x_mm": sites[n][0] * 1e3, "y_mm": sites[n][1] * 1e3}
+            for k, n in start
+        ],
         "steps": [
             {
                 "instrument": s.placement[0],
