@@ -240,12 +240,14 @@ def test_leave_one_out_deviation_matches_a_median_per_reading():
 
 def _identical_runs_text(quantity, unit, instrument, values, runs=5, odd=None):
     """Every run and direction of every position reads the same written value — except, with
-    ``odd = (position index, text)``, run 1's forward reading there."""
+    ``odd = (position index, text)``, run 1's forward reading there (``odd`` a dict:
+    ``{(position index, direction): text}``, run 1's reading at each)."""
+    odd = {} if odd is None else odd if isinstance(odd, dict) else {(odd[0], "forward"): odd[1]}
     lines = [HEADER + ",run,direction,instrument"]
     for i, v in enumerate(values):
         for run in range(1, runs + 1):
             for d in ("forward", "backward"):
-                w = odd[1] if odd and (i, run, d) == (odd[0], 1, "forward") else v
+                w = odd[(i, d)] if run == 1 and (i, d) in odd else v
                 lines.append(f"{i * 20},P5,0,0,{quantity},{w},{unit},{run},{d},{instrument}")
     return "\n".join(lines) + "\n"
 
@@ -289,12 +291,19 @@ def test_an_unknown_rounding_survives_the_canonical_file():
     assert parse_readings(format_long([r]))[0].resolution == 0.0
 
 
+def _every_other(values, delta):
+    """Run 1 off by ``delta`` (written to 3 decimals) at every other position, both ways."""
+    return {(i, d): f"{float(values[i]) + delta:.3f}" for i in range(0, len(values), 2)
+            for d in ("forward", "backward")}
+
+
 def test_runs_agreeing_below_the_instrument_floor_get_the_floor():
-    # all runs identical but one reading 0.001 µm off: a pooled scatter of ~6e-5 µm, below the
-    # floor max(rounding 0.001 µm / √12, 0.1 × the 1 µm default) = 0.1 µm per reading; the
-    # merged value is the mean of 10 readings
+    # runs that differ by 0.001 µm at half of the positions: a pooled scatter of ~3e-4 µm,
+    # below the floor max(rounding 0.001 µm / √12, 0.1 × the 1 µm default) = 0.1 µm per
+    # reading; the merged value is the mean of 10 readings
     values = [f"{0.1 * k - 3.697:.3f}" for k in range(36)]
-    text = _identical_runs_text("EXX", "um", "interferometer", values, odd=(3, "-3.396"))
+    text = _identical_runs_text("EXX", "um", "interferometer", values,
+                                odd=_every_other(values, 0.001))
     notes = []
     m = merge_readings(parse_readings(text, "same.csv"), "same.csv", notes)
     assert np.allclose(m.sigma, 0.1e-6 / math.sqrt(10), rtol=1e-12)
@@ -303,13 +312,41 @@ def test_runs_agreeing_below_the_instrument_floor_get_the_floor():
     assert "below the floor 0.1 µm" in notes[0]
 
 
+@pytest.mark.parametrize("n_odd", [1, 7])
+def test_copies_with_a_few_readings_changed_are_still_copies(n_odd):
+    # copies of one run with one (or 7 of 72 groups) reading edited: no repeatability in them,
+    # the information of one run — merged exactly as exact copies are (σ of one reading the
+    # 1 µm default, one reading per direction), not as 10 readings at the 0.1 µm floor (10×
+    # the σ, 100× less weight than before this rule)
+    values = [f"{0.1 * k - 3.697:.3f}" for k in range(36)]
+    odd = {(i, "forward"): f"{float(values[i]) + 0.25:.3f}" for i in range(0, 5 * n_odd, 5)}
+    text = _identical_runs_text("EXX", "um", "interferometer", values, odd=odd)
+    notes = []
+    m = merge_readings(parse_readings(text, "edited.csv"), "edited.csv", notes)
+    exact = merge_readings(parse_readings(_identical_runs_text("EXX", "um", "interferometer",
+                                                               values)))
+    np.testing.assert_allclose(m.sigma, exact.sigma, rtol=1e-12)
+    assert set(m.sigma_source) == {"copies+default"}
+    assert len(notes) == 1 and f"identical at {72 - n_odd} of the 72" in notes[0]
+    # the edited readings still count in the merged values (mean of the copies)
+    changed = np.unique([i for i, _ in odd])
+    assert np.all(np.abs(m.value - exact.value)[changed] > 0)
+
+
+def _coarse_odd(values):
+    """Whole arcseconds: run 1 one 1″ step off at every fourth position, both ways (18 of the
+    72 groups: below the 80 % that make copies)."""
+    return {(i, d): str(int(values[i]) + 1) for i in range(0, len(values), 4)
+            for d in ("forward", "backward")}
+
+
 def test_runs_written_coarsely_get_the_rounding_floor():
-    # whole arcseconds, one reading 1″ off the others: a rounding step of 1″ = π/648000 rad,
-    # uniform: σ = step/√12 (GUM F.2.2.1), above 0.1 × the level's 4 µm/m default and above the
-    # pooled scatter (one 1″ deviation in 288 degrees of freedom)
+    # whole arcseconds, run 1 one 1″ off at a quarter of the positions: a rounding step of
+    # 1″ = π/648000 rad, uniform: σ = step/√12 (GUM F.2.2.1), above 0.1 × the level's 4 µm/m
+    # default and above the pooled scatter (18 1″ deviations in 288 degrees of freedom: 0.22″)
     values = [str(k % 7 - 3) for k in range(36)]
     m = merge_readings(parse_readings(
-        _identical_runs_text("EBX", "arcsec", "level", values, odd=(5, "1"))))
+        _identical_runs_text("EBX", "arcsec", "level", values, odd=_coarse_odd(values))))
     step = math.pi / 648000
     assert step / math.sqrt(12) > 0.4e-6
     assert np.allclose(m.sigma, step / math.sqrt(12) / math.sqrt(10), rtol=1e-12)
@@ -323,7 +360,7 @@ def test_import_keeps_the_rounding_floor_of_coarse_readings():
 
     values = [str(k % 7 - 3) for k in range(36)]
     original = parse_readings(_identical_runs_text("EBX", "arcsec", "level", values,
-                                                   odd=(5, "1")))
+                                                   odd=_coarse_odd(values)))
     text = format_long(original)
     assert text.splitlines()[0].endswith(",z_mm,resolution")
     again = parse_readings(text)

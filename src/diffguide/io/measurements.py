@@ -69,14 +69,20 @@ zero — and position:
    give the channel a weight the data do not have. The rows are then marked ``"floor"`` in
    :attr:`Measurements.sigma_source` and a note names the channel;
 4. the merged value's σ follows from step 2: ``σ_m² = ¼ (σ²/n_f + σ²/n_b)`` (``σ²/n`` with one
-   direction) — except where a channel's runs are **identical at every position** (copies of
-   one run, or a display coarser than the noise): their mean is no better than one reading and
-   they say nothing of the repeatability, so each direction counts as one reading (``n = 1``)
-   with the ``sigma`` column or else the instrument default (never below the readings' rounding);
-   the rows' source then includes ``copies`` (``"copies+default"``, ``"column+copies"``) and a
-   note names the channel. (Copying one noisy run of the bundled data's yaw five times
-   gave, with the floor, χ²/dof 1.9, no convergence and rails 5.6 µm off; merged as one run the
-   fit is as good as with the real runs.)
+   direction) — except where a channel's runs are **identical at (nearly) every position**: in
+   :data:`COPIES_FRACTION` (80 %) or more of its (position, direction) groups of more than one
+   reading (copies of one
+   run, perhaps with a reading edited, or a display coarser than the noise): their mean is no
+   better than one reading and they say nothing of the repeatability, so each direction counts
+   as one reading (``n = 1``) with the ``sigma`` column or else the instrument default (never
+   below the readings' rounding); the rows' source then includes ``copies``
+   (``"copies+default"``, ``"column+copies"``) and a note names the channel. (Copying one noisy
+   run of the bundled data's yaw five times gave, with the floor, χ²/dof 1.9, no convergence
+   and rails 5.6 µm off; merged as one run the fit is as good as with the real runs. Before the
+   80 % rule, copies with one reading changed took the floor branch: 10–30× the weight of exact
+   copies, for the same information.) Real runs agree exactly at a position only when their
+   noise is below the display step; at 80 % of the positions it is well below it, and the
+   rounding, which the runs share, then dominates the mean's error.
 
 Every row is validated; a bad row raises one ``ValueError`` ``"FILE:LINE: field 'f': ... (allowed
 ...)"``. Values are converted to SI (m, rad).
@@ -118,6 +124,9 @@ DEFAULT_SIGMA = {("level", "angular"): 4e-6, ("interferometer", "angular"): 2e-6
                  ("interferometer", "linear"): 1e-6}
 #: Degrees of freedom a channel's pooled scatter needs before it replaces the default σ.
 MIN_SCATTER_DOF = 20
+#: A channel whose runs are identical at this fraction of the positions read more than once (or
+#: more) is merged as copies of one run (module docstring, step 4).
+COPIES_FRACTION = 0.8
 #: The pooled scatter's floor, as a fraction of :data:`DEFAULT_SIGMA` (module docstring, step 3;
 #: the rounding of the written readings is the other floor).
 SCATTER_FLOOR_FRACTION = 0.1
@@ -456,17 +465,19 @@ def merge_readings(readings, source: str = "<readings>",
             for d in dirs:
                 dirs[d] = [r for r in dirs[d] if id(r) not in rejected]
     # repeatability of one reading per channel from the within-direction scatter
-    ss, dof, spread = defaultdict(float), defaultdict(int), defaultdict(float)
+    ss, dof = defaultdict(float), defaultdict(int)
+    repeated, same = defaultdict(int), defaultdict(int)  # positions read more than once; alike
     for (p, q, inst, _), dirs in groups.items():
         for rows in dirs.values():
             if len(rows) > 1:
                 v = np.array([r.value for r in rows])
                 ss[(p, q, inst)] += float(np.sum((v - v.mean()) ** 2))
                 dof[(p, q, inst)] += len(rows) - 1
-                spread[(p, q, inst)] = max(spread[(p, q, inst)], float(np.ptp(v)))
-    # runs identical at every position: copies of one run (or a display coarser than the noise),
-    # which carry the information of one run — merged as one reading per direction
-    copies = {ch for ch in dof if spread[ch] == 0.0}
+                repeated[(p, q, inst)] += 1
+                same[(p, q, inst)] += int(np.ptp(v) == 0.0)
+    # runs identical at (nearly) every position: copies of one run (or a display coarser than
+    # the noise), which carry the information of one run — merged as one reading per direction
+    copies = {ch for ch in dof if same[ch] >= COPIES_FRACTION * repeated[ch]}
     for p, q, inst in sorted(copies) if notes is not None else ():
         quantity = QUANTITIES[q]
         stated = any(r.sigma is not None for (pp, qq, ii, _), dirs in groups.items()
@@ -474,9 +485,12 @@ def merge_readings(readings, source: str = "<readings>",
         one = ("its sigma column" if stated else
                f"the instrument's default {DEFAULT_SIGMA[(inst, _kind(quantity))] * 1e6:g} "
                f"{_user_unit(quantity)} (or the readings' rounding, if coarser)")
+        where = ("every position read more than once" if same[(p, q, inst)] == repeated[
+            (p, q, inst)] else f"{same[(p, q, inst)]} of the {repeated[(p, q, inst)]} "
+            "position-and-direction groups read more than once")
         notes.append(f"{source}: {quantity} at {names[p]} ({inst}): the runs are identical at "
-                     f"every position read more than once (copies of one run?): merged as one "
-                     f"run, σ of one reading {one}")
+                     f"{where} (copies of one run, or a display coarser than the noise?): "
+                     f"merged as one run, σ of one reading {one}")
     # the finest rounding step written in each channel (0: unknown)
     res = {}
     for (p, q, inst, _), dirs in groups.items():
