@@ -32,19 +32,19 @@ XFAIL: dict[tuple[str, str], str] = {
     "states: with waviness= 0.2/0.3 µm RMS the coverage is 86/95 % (84/92 % worst), "
     "test_stated_waviness_covers_the_blind_content; scored without the 48 mm content the same "
     "bands hold 90 % (83-95 % per profile), test_blind_case_bands_hold_everything_the_data_can_see",
-    ("coverage", "with_straightness"): _NOW + "coverage 81 % overall, 60 % worst on this case's "
-    "seed (707), where the thickness comes back 44 ± 5 mm (truth 50) and χ²/dof is 0.77; the "
+    ("coverage", "with_straightness"): _NOW + "coverage 81 % overall, 59 % worst on this case's "
+    "seed (707), where the thickness comes back 43 ± 5 mm (truth 50) and χ²/dof is 0.77; the "
     "structure estimate sits 2.1σ (thickness and preload jointly) from the truth in the direction "
     "that moves the horizontal profiles most; on seeds 1-40 of the same case it passes (overall "
     ">= 93 %, worst >= 84 %, error/σ 0.52-1.17): a tail draw (bench/battery_seeds.py)",
     ("error", "thickness_70mm"): _NOW + "profile errors 8/18/9/28 % (joint estimate 7/25/10/34 %, "
-    "structure fixed at the preset 9/35/12/47 %); thickness 76 ± 11 mm (70). With the structure "
+    "structure fixed at the preset 9/35/12/47 %); thickness 77 ± 11 mm (70). With the structure "
     "known (oracle) 7/21/9/30 %: the bound is below what these data hold. The miss is the rails' "
     "horizontal half-difference, 22 % (oracle 24 %); means and vertical difference 3-7 %. Fitted "
     "with the machine that made the data, worst profile 30 %, 27 % with the half-difference's "
     "prior scale chosen in hindsight: test_the_15_percent_bound_is_beyond_the_data"
     "; with the planned layout it holds: test_the_15_percent_bound_holds_with_the_planned_layout",
-    ("error", "preload_2pct"): _NOW + "profile errors 10/24/7/24 %: the preload is not determined "
+    ("error", "preload_2pct"): _NOW + "profile errors 10/25/7/24 %: the preload is not determined "
     "by these data (reported as such) and the thickness takes up part of its effect; with the "
     "structure known (oracle) 9/22/5/20 %; the miss is the horizontal half-difference, 22 % "
     "(oracle 19 %); means and vertical difference 3-8 %. With the machine that made the data "
@@ -412,3 +412,39 @@ def test_large_errors_come_with_large_sigma(name):
     res = result(name)
     sc = res.score
     assert np.all(sc.rms_um <= 3 * sc.sigma_rms_um + 1e-3), (sc.rms_um, sc.sigma_rms_um)
+
+
+def test_the_structure_estimate_is_the_minimum_of_its_objective(monkeypatch):
+    """The marginal search ends at a minimum of its own objective (``−2 log p(y|q) + ‖q‖²``),
+    checked by brute force: on the 30 mm table measured with ``cases.PLANNED`` (seed 2), where
+    thickness and preload make a narrow, curved valley, no point of a 7 × 7 grid of ±3
+    conditional σ around the estimate lies lower, nor does the truth. With a fixed 0.3 prior-σ
+    difference step the search stopped at (−1.0, +2.1) prior σ, 2.3 above the objective at the
+    truth, and called it converged."""
+    import dataclasses
+
+    import diffguide.inverse.fit as fit_module
+
+    calls = []
+    search = fit_module.maximise_marginal
+
+    def recording(score, q0, bounds, **kw):
+        q, cov, info = search(score, q0, bounds, **kw)
+        calls.append((score, q, cov, bounds))
+        return q, cov, info
+
+    monkeypatch.setattr(fit_module, "maximise_marginal", recording)
+    case = dataclasses.replace(cases.planned(CASES["thickness_30mm"]()), seed=2)
+    res = cases.run_case(case)
+    assert res.fit is not None, res.error
+    score, q, cov, bounds = calls[-1]
+    f0 = score(q)
+    s_log = np.log(2.0) / 2  # the thickness prior's σ of ln t: [25, 100] mm about 50 mm
+    truth = np.array([np.log(0.030 / 0.05) / s_log, 0.0])
+    assert f0 <= score(truth) + 0.05, (q, f0, score(truth))
+    H = np.linalg.inv(cov / 2.0)  # the search's curvature (cov = 2 H⁻¹, widened at most)
+    cond = np.sqrt(2.0 / np.diag(H))
+    for a in np.linspace(-3, 3, 7):
+        for b in np.linspace(-3, 3, 7):
+            p = np.clip(q + np.array([a, b]) * cond, bounds[:, 0], bounds[:, 1])
+            assert score(p) >= f0 - 0.05, (p, score(p), q, f0)
