@@ -29,7 +29,7 @@ later one half the conditional σ of each component that the last Hessian implie
 ``−2 log p`` is below :data:`DECREASE_TOL`. With thickness and preload strongly correlated the
 objective is a narrow, curved valley. A fixed 0.3 step straddled it, and Newton stopped short of
 its floor while reporting convergence. Seen on a 30 mm table measured at 15 points: the search
-stopped at (−1.0, +2.1) prior σ (thickness 35 mm, preload 33 %), 2.3 above the objective at
+stopped at (−1.0, +2.1) prior σ (thickness 35 mm, preload 34 %), 2.3 above the objective at
 (−1.5, 0.0), near the truth. On 10 noise seeds the thickness came back high every time
 (z 1.1–2.8). With the adaptive steps the minimum is found: at or below the objective at the
 truth and on a 9 × 9 grid.
