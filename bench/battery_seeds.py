@@ -48,7 +48,7 @@ def record(name: str, seed: int, layout: str = "own") -> dict:
     numbers of one row of the JSON lines."""
     case = dataclasses.replace(CASES[name](), seed=seed)
     if layout == "planned":
-        case = dataclasses.replace(planned(case), name=name)
+        case = planned(case)
     t0 = time.perf_counter()
     res = run_case(case)
     out = {"name": name, "seed": seed, "layout": layout}

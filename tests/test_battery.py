@@ -439,8 +439,9 @@ def test_the_structure_estimate_is_the_minimum_of_its_objective(monkeypatch):
     assert res.fit is not None, res.error
     score, q, cov, bounds = calls[-1]
     f0 = score(q)
-    s_log = np.log(2.0) / 2  # the thickness prior's σ of ln t: [25, 100] mm about 50 mm
-    truth = np.array([np.log(0.030 / 0.05) / s_log, 0.0])
+    thickness = res.fit.structure["thickness"]  # q is ln(t / prior value) in prior σ
+    truth = np.array([np.log(case.thickness / thickness["prior_value"])
+                      / thickness["prior_sigma_log"], 0.0])
     assert f0 <= score(truth) + 0.05, (q, f0, score(truth))
     H = np.linalg.inv(cov / 2.0)  # the search's curvature (cov = 2 H⁻¹, widened at most)
     cond = np.sqrt(2.0 / np.diag(H))

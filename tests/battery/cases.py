@@ -90,9 +90,9 @@ PLANNED: tuple[Sensor, ...] = BUNDLED + tuple(
 
 
 def planned(case: "Case") -> "Case":
-    """``case`` measured with the :data:`PLANNED` layout instead of its own (same truth, noise
-    seed and fit)."""
-    return dataclasses.replace(case, name=case.name + "_planned", sensors=PLANNED)
+    """``case`` measured with the :data:`PLANNED` layout instead of its own (same name, truth,
+    noise seed and fit)."""
+    return dataclasses.replace(case, sensors=PLANNED)
 
 
 # ----------------------------------------------------------------------------- truth rails

@@ -509,30 +509,25 @@ def run(args) -> int:
     return 0 if elastic.converged else EXIT_NOT_CONVERGED
 
 
-#: What ``diffguide plan`` calls the instrument that reads each quantity (an interferometer's
-#: angular optics read EBX/ECX, its straightness optics EYX/EZX; positioning is not planned).
-_PLAN_KIND = {("level", "EAX"): "level", ("level", "EBX"): "level",
-              ("interferometer", "EAX"): "interferometer",
-              ("interferometer", "EBX"): "interferometer",
-              ("interferometer", "ECX"): "interferometer",
-              ("interferometer", "EYX"): "straightness",
-              ("interferometer", "EZX"): "straightness"}
-
-
 def layout_csv(meas) -> str:
     """The measured layout in ``diffguide plan``'s plan format (``--start``/``--compare``):
     ``instrument,point,x_mm,y_mm,reads`` — one row per point and instrument kind (``level``,
-    ``interferometer`` for angular optics, ``straightness`` for straightness optics; positioning
-    channels, which the planner does not model, are left out), ``reads`` the quantities read
-    there, ``+``-joined."""
+    ``interferometer`` for angular optics, ``straightness`` for straightness optics; what the
+    planner does not model — positioning, an interferometer reading roll — is left out),
+    ``reads`` the quantities read there, ``+``-joined."""
     from ..inverse.data import QUANTITIES
+    from ..inverse.plan import KINDS
     from ..io.measurements import format_csv
 
     reads: dict[tuple[int, str], list[str]] = {}
     for p, q, inst in meas.channels:
-        kind = _PLAN_KIND.get((inst, QUANTITIES[q]))
-        if kind is not None and QUANTITIES[q] not in reads.setdefault((p, kind), []):
-            reads[(p, kind)].append(QUANTITIES[q])
+        quantity = QUANTITIES[q]
+        # a level is a level; an interferometer's optics are the planner's angular
+        # interferometer or its straightness optics, by what they read
+        kinds = ("level",) if inst == "level" else ("interferometer", "straightness")
+        kind = next((k for k in kinds if quantity in KINDS[k]), None)
+        if kind is not None and quantity not in reads.setdefault((p, kind), []):
+            reads[(p, kind)].append(quantity)
     rows = [{"instrument": kind, "point": meas.point_names[p],
              "x_mm": float(meas.points_xy[p][0] * 1e3), "y_mm": float(meas.points_xy[p][1] * 1e3),
              "reads": "+".join(qs)} for (p, kind), qs in sorted(reads.items())]
