@@ -32,7 +32,7 @@ XFAIL: dict[tuple[str, str], str] = {
     "states: with waviness= 0.2/0.3 µm RMS the coverage is 86/95 % (84/92 % worst), "
     "test_stated_waviness_covers_the_blind_content; scored without the 48 mm content the same "
     "bands hold 90 % (83-95 % per profile), test_blind_case_bands_hold_everything_the_data_can_see",
-    ("coverage", "with_straightness"): _NOW + "coverage 81 % overall, 59 % worst on this case's "
+    ("coverage", "with_straightness"): _NOW + "coverage 82 % overall, 61 % worst on this case's "
     "seed (707), where the thickness comes back 43 ± 5 mm (truth 50) and χ²/dof is 0.77; the "
     "structure estimate sits 2.1σ (thickness and preload jointly) from the truth in the direction "
     "that moves the horizontal profiles most; on seeds 1-40 of the same case it passes (overall "

@@ -92,7 +92,13 @@ from ..machine.equilibrium import Machine
 from ..machine.kinematics import joint_errors_traced
 from .basis import RailBasis, null_space_basis
 from .data import QUANTITIES, Measurements
-from .marginal import carries_information, marginal_score, maximise_marginal
+from .marginal import (
+    carries_information,
+    laplace,
+    marginal_score,
+    maximise_marginal,
+    noise_variance,
+)
 from .structure import DETERMINED_RATIO, MachineFamily, StructurePriors
 from .weight import WeightChoice, choose_prior, fixed_weight, project_out
 
@@ -622,18 +628,41 @@ def fit_rails(
         c0 = choose(J, r, x, weights, "ml")
         Om_fixed = Om_curv + c0.kappa * Om_amp
 
-        def score(q):
-            xq = x.copy()
-            xq[iq] = q
-            r_q, J_q, _, ok_q, _ = linearise(xq)
-            if not ok_q or not np.all(np.isfinite(J_q)):
+        problems: dict = {}
+
+        def problem(q):
+            """The linearised problem at structure ``q``: ``(J̃, ỹ, N')``, or None."""
+            key = np.asarray(q, float).tobytes()
+            if key not in problems:
+                xq = x.copy()
+                xq[iq] = q
+                r_q, J_q, _, ok_q, _ = linearise(xq)
+                if not ok_q or not np.all(np.isfinite(J_q)):
+                    problems[key] = None
+                else:
+                    y = -(r_q - J_q[:, ic] @ x[ic])  # data in the total rail and lead unknowns
+                    Jt, yp, rank_f = project_out(J_q[:, n_theta + n_q:], J_q[:, :n_theta], y)
+                    problems[key] = (Jt, yp, used - n_chan - rank_f)
+            return problems[key]
+
+        def score(q, scale2=None):
+            p = problem(q)
+            if p is None:
                 return np.inf
-            y = -(r_q - J_q[:, ic] @ x[ic])  # data in the total rail and lead unknowns
-            Jt, yp, rank_f = project_out(J_q[:, n_theta + n_q:], J_q[:, :n_theta], y)
-            return marginal_score(Jt, yp, Om_fixed, used - n_chan - rank_f, c0.lam) \
-                + float(q @ q)
+            return marginal_score(p[0], p[1], Om_fixed, p[2], c0.lam, scale2) + float(q @ q)
 
         q, cov, note = maximise_marginal(score, x[iq], q_bounds)
+        p = problem(q)
+        s2 = noise_variance(p[0], p[1], Om_fixed, p[2], c0.lam) if p is not None else 1.0
+        note["noise_scale"] = float(np.sqrt(s2))
+        if s2 < 1.0 and not note["message"].startswith("the model failed"):
+            # the data scatter less than their stated σ: the profiled score would take that
+            # scatter, model error included, for the noise and narrow the structure's σ; like
+            # the rails' σ, it is never narrowed below what the stated σ give (module docstring)
+            cov, factors = laplace(lambda v: score(v, 1.0), q, cov, q_bounds)
+            note["widened"] = [float(a) for a in factors]
+            _log.info("fit: the data scatter %.2g of their stated sigma: the structure's "
+                      "sigma is taken at the stated sigma", float(np.sqrt(s2)))
         out = x.copy()
         out[iq] = q
         return out, cov, note

@@ -85,10 +85,17 @@ class _Spectrum:
         lam = np.asarray(lam, float)
         if criterion == "gcv":
             return n_eff * self.residual2(lam) / np.maximum(n_eff - self.edf(lam), 1e-9) ** 2
+        Q, logdet = self.ml_parts(lam)
+        return n_eff * np.log(np.maximum(Q, 1e-300)) + logdet
+
+    def ml_parts(self, lam):
+        """The marginal likelihood's two terms at ``λ``: the quadratic form
+        ``Q = y_⊥² + Σ λ/(s²+λ) b²`` (``Q/N'`` is the noise variance the profile takes) and
+        ``log det(I + λ⁻¹ J̃ᵀJ̃) = Σ log(1 + s²/λ)``."""
+        lam = np.asarray(lam, float)
         Q = self.y_perp2 + np.sum(lam[..., None] / (self.s2 + lam[..., None]) * self.b**2,
                                   axis=-1)
-        return n_eff * np.log(np.maximum(Q, 1e-300)) + np.sum(
-            np.log1p(self.s2 / lam[..., None]), axis=-1)
+        return Q, np.sum(np.log1p(self.s2 / lam[..., None]), axis=-1)
 
 
 def project_out(F, *arrays):
