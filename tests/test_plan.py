@@ -329,3 +329,12 @@ def test_cli_writes_the_plan_and_refuses_bad_input(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--grid" in err and "off the table" in err and "missing.csv" in err
     assert "conflict.csv:3: field 'point': 'P1' is at (-450, 200) mm here but at (450, 200)" in err
+
+
+def test_the_cli_offers_what_the_planner_models():
+    """``diffguide plan`` keeps its own table of who reads what (the parser must not import
+    JAX); it is the planner's :data:`~diffguide.inverse.plan.KINDS`, kind for kind."""
+    from diffguide.cli.plan import QUANTITY_CHOICES
+    from diffguide.inverse.plan import KINDS
+
+    assert QUANTITY_CHOICES == KINDS

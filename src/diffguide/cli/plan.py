@@ -9,6 +9,8 @@ import numpy as np
 
 from ._common import say
 
+#: What each kind reads: :data:`diffguide.inverse.plan.KINDS`, restated so that parsing the
+#: command line does not import JAX (a test asserts they agree).
 QUANTITY_CHOICES = {
     "level": ("EBX", "EAX"),
     "interferometer": ("EBX", "ECX"),
