@@ -38,7 +38,7 @@ XFAIL: dict[tuple[str, str], str] = {
     "that moves the horizontal profiles most; on seeds 1-40 of the same case it passes (overall "
     ">= 93 %, worst >= 84 %, error/σ 0.52-1.17): a tail draw (bench/battery_seeds.py)",
     ("error", "thickness_70mm"): _NOW + "profile errors 8/18/9/28 % (joint estimate 7/25/10/34 %, "
-    "structure fixed at the preset 9/35/12/47 %); thickness 77 ± 11 mm (70). With the structure "
+    "structure fixed at the preset 9/35/12/47 %); thickness 77 ± 12 mm (70). With the structure "
     "known (oracle) 7/21/9/30 %: the bound is below what these data hold. The miss is the rails' "
     "horizontal half-difference, 22 % (oracle 24 %); means and vertical difference 3-7 %. Fitted "
     "with the machine that made the data, worst profile 30 %, 27 % with the half-difference's "

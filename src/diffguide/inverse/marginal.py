@@ -59,6 +59,16 @@ Seen on the battery's 70 mm table (8 noise seeds): on 3 of them the Laplace σ c
 "determined" at 4.1–5.5 % ± 1.5–1.8 % against a truth of 8 %, while the objective rose by only
 1.9–2.9 at +2σ (toward the truth) and 3.1–5.5 at +3σ.
 
+Straight principal axes miss a *curved* valley: they leave its floor, and the objective rises
+steeply there although along the floor it barely rises. So each parameter is also checked along
+its **profile** — the least objective over the other parameters with that one held (a few
+Newton steps) — at ``±2σ_i``, and again at twice the σ that implies, while it keeps rising
+more slowly than its quadratic (up to :data:`PROFILE_PASSES` checks a side): the σ becomes half
+the distance at which the profile rises by 4 (the likelihood-ratio interval), the correlations
+kept. Seen on the 70 mm table measured at 15 points (seed 5): the preload came back
+"determined" at 3.7 ± 0.9 % against a truth of 8 % (z −3.2), while its profile at the truth lay
+only 1.9 above its least; now 3.7 ± 2.5 %, not determined.
+
 **Data with no content** (:func:`carries_information`). With the noise scale profiled out the
 score sees only the *shape* of ``y``: ``y → cy`` adds ``N' log c²`` whatever ``q`` (this is
 what makes the structure independent of the scale of the stated σ). Data that are zero — every
@@ -98,6 +108,10 @@ DECREASE_TOL = 0.01
 NULL_TOL = 1e-9
 #: The Laplace σ is checked at this many σ along each principal axis (:func:`widen`).
 CHECK_AT = 2.0
+#: Newton steps of each profile's inner minimisation (:func:`widen`).
+PROFILE_ITER = 4
+#: Checks per side of a profile that keeps rising more slowly than its quadratic (:func:`widen`).
+PROFILE_PASSES = 3
 
 
 def carries_information(y, n_eff: int, scale: float = 0.0) -> bool:
@@ -211,8 +225,95 @@ def widen(f, q, cov, lo, hi, at: float = CHECK_AT, grad=None):
                 continue
             implied = t / np.sqrt(rise) if rise > 0 else np.inf
             new[i] = max(new[i], min(implied, 1.0))
-    factors = np.where(sd > 0, new / np.where(sd > 0, sd, 1.0), 1.0)
-    return (V * new**2) @ V.T, factors
+    cov = (V * new**2) @ V.T
+    if q.size > 1:  # along each parameter, its profile (the valley may curve away from V)
+        cov = _profile_widen(f, q, cov, lo, hi, at, grad is not None, f0)
+    along = np.sqrt(np.maximum(np.einsum("ji,jk,ki->i", V, cov, V), 0.0))
+    factors = np.where(sd > 0, along / np.where(sd > 0, sd, 1.0), 1.0)
+    return cov, factors
+
+
+def _profile(f, q, i, t, cov, lo, hi, iters: int = PROFILE_ITER):
+    """The least value of ``f`` over the components other than ``i``, with ``q_i = t``: a few
+    Newton steps (central differences, half the conditional σ of ``cov``) from the point the
+    quadratic model predicts, ``q_o − P_oo⁻¹P_oi(t − q_i)`` (``P = cov⁻¹``); ``nan`` where the
+    model failed."""
+    other = np.arange(q.size) != i
+    P = np.linalg.inv(cov)
+    Poo = P[np.ix_(other, other)]
+    h = _steps(2.0 * Poo)
+    lo_o, hi_o = lo[other] + h, hi[other] - h
+    u = q.copy()
+    u[i] = t
+    u[other] = np.clip(q[other] - np.linalg.solve(Poo, P[other, i] * (t - q[i])), lo_o, hi_o)
+
+    def sub(v):
+        w = u.copy()
+        w[other] = v
+        return f(w)
+
+    with np.errstate(invalid="ignore"):
+        best = sub(u[other])
+        for _ in range(iters):
+            f0, g, H = _stencil(sub, u[other], h)
+            if not (np.isfinite(f0) and np.all(np.isfinite(g)) and np.all(np.isfinite(H))):
+                break
+            step = -np.linalg.solve(_floor(H), g)
+            norm = float(np.linalg.norm(step))
+            if norm > 1.0:
+                step /= norm
+            v = np.clip(u[other] + step, lo_o, hi_o)
+            fv = sub(v)
+            if not fv < best:
+                break
+            u[other], best = v, fv
+            if norm < 0.1 * float(np.min(h)):
+                break
+    return best if np.isfinite(best) else np.nan
+
+
+def _profile_widen(f, q, cov, lo, hi, at, tangent: bool, f0):
+    """``cov`` with each parameter's σ widened to what its profile implies: at ``q_i ± at·σ_i``
+    the profile (:func:`_profile`) of a Gaussian objective rises by ``at²``; a rise ``Δ`` implies
+    ``at·σ_i/√Δ``; the σ becomes the largest of itself and the two sides', at most 1, the
+    correlations kept (``D cov D``). ``tangent``: ``q`` is not ``f``'s minimum, so the rise is the
+    profile's curvature, ``(p₊ + p₋)/2 − p₀``, on both sides."""
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    new = sd.copy()
+    for i in range(q.size):
+        d = at * sd[i]
+        d = min(d, q[i] - lo[i], hi[i] - q[i]) if tangent else d
+        if not d > 1e-9 * max(sd[i], 1e-300):
+            continue
+        if tangent:
+            sides = [float(q[i] + d), float(q[i] - d)]
+            p = [_profile(f, q, i, t, cov, lo, hi) for t in sides]
+            rise = 0.5 * (p[0] + p[1]) - _profile(f, q, i, q[i], cov, lo, hi)
+            if not np.isnan(rise):
+                new[i] = max(new[i], min(d / np.sqrt(rise) if rise > 0 else np.inf, 1.0))
+            continue
+        for sign in (1.0, -1.0):
+            # the distance where the profile rises by at²: each pass checks at ``at`` times
+            # the σ the last implied (a profile flatter further out widens it again)
+            dist, sd_side = d, sd[i]
+            for _ in range(PROFILE_PASSES):
+                t = float(np.clip(q[i] + sign * dist, lo[i], hi[i]))
+                dist = abs(t - q[i])
+                if dist < 1e-9 * max(sd[i], 1e-300):
+                    break
+                rise = _profile(f, q, i, t, cov, lo, hi) - f0
+                if np.isnan(rise):  # the model failed there: nothing learnt on that side
+                    break
+                implied = min(dist / np.sqrt(rise) if rise > 0 else np.inf, 1.0)
+                if implied <= 1.05 * sd_side:
+                    break
+                sd_side = implied
+                new[i] = max(new[i], implied)
+                if implied >= 1.0:
+                    break
+                dist = at * implied
+    D = np.where(sd > 0, new / np.where(sd > 0, sd, 1.0), 1.0)
+    return cov * D[:, None] * D[None, :]
 
 
 def laplace(f, q, cov0, bounds):
