@@ -95,9 +95,9 @@ from .data import QUANTITIES, Measurements
 from .marginal import (
     carries_information,
     laplace,
-    marginal_score,
+    marginal_parts,
     maximise_marginal,
-    noise_variance,
+    score_of_parts,
 )
 from .structure import DETERMINED_RATIO, MachineFamily, StructurePriors
 from .weight import WeightChoice, choose_prior, fixed_weight, project_out
@@ -628,32 +628,34 @@ def fit_rails(
         c0 = choose(J, r, x, weights, "ml")
         Om_fixed = Om_curv + c0.kappa * Om_amp
 
-        problems: dict = {}
+        parts: dict = {}
 
-        def problem(q):
-            """The linearised problem at structure ``q``: ``(J̃, ỹ, N')``, or None."""
+        def parts_at(q):
+            """The marginal likelihood's terms at structure ``q``, ``(Q, log det, N')``, or
+            None where the model failed (one linearisation and one SVD per ``q``)."""
             key = np.asarray(q, float).tobytes()
-            if key not in problems:
+            if key not in parts:
                 xq = x.copy()
                 xq[iq] = q
                 r_q, J_q, _, ok_q, _ = linearise(xq)
                 if not ok_q or not np.all(np.isfinite(J_q)):
-                    problems[key] = None
+                    parts[key] = None
                 else:
                     y = -(r_q - J_q[:, ic] @ x[ic])  # data in the total rail and lead unknowns
                     Jt, yp, rank_f = project_out(J_q[:, n_theta + n_q:], J_q[:, :n_theta], y)
-                    problems[key] = (Jt, yp, used - n_chan - rank_f)
-            return problems[key]
+                    parts[key] = (*marginal_parts(Jt, yp, Om_fixed, c0.lam),
+                                  used - n_chan - rank_f)
+            return parts[key]
 
         def score(q, scale2=None):
-            p = problem(q)
+            p = parts_at(q)
             if p is None:
                 return np.inf
-            return marginal_score(p[0], p[1], Om_fixed, p[2], c0.lam, scale2) + float(q @ q)
+            return score_of_parts(*p, scale2) + float(q @ q)
 
         q, cov, note = maximise_marginal(score, x[iq], q_bounds)
-        p = problem(q)
-        s2 = noise_variance(p[0], p[1], Om_fixed, p[2], c0.lam) if p is not None else 1.0
+        p = parts_at(q)
+        s2 = p[0] / max(p[2], 1) if p is not None else 1.0  # ŝ², the profiled noise variance
         note["noise_scale"] = float(np.sqrt(s2))
         if s2 < 1.0 and not note["message"].startswith("the model failed"):
             # the data scatter less than their stated σ: the profiled score would take that

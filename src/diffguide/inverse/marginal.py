@@ -40,7 +40,7 @@ truth and on a 9 × 9 grid.
 
 **Never narrowed by data that scatter less than stated** (:func:`laplace`). Profiling the noise
 scale makes the estimate independent of the stated σ, and takes the scatter left after the fit,
-``ŝ² = Q/N'`` (:func:`noise_variance`), for the noise. Where ``ŝ < 1`` that scatter may be no
+``ŝ² = Q/N'`` (:func:`marginal_parts`), for the noise. Where ``ŝ < 1`` that scatter may be no
 noise at all but the model's own error, and the profiled curvature then claims a precision the
 instruments never had. Seen: noise-free data simulated on a finer mesh left ``ŝ = 0.007`` and
 put the thickness at 55.8 ± 0.31 mm, 19σ from the truth's 50 mm. So, like the rails' σ (widened
@@ -89,7 +89,7 @@ import logging
 
 import numpy as np
 
-from .weight import _Spectrum
+from .weight import _Spectrum, ml_score
 
 _log = logging.getLogger("diffguide")
 #: Largest central-difference step in ``q`` (units of the prior σ), the first iteration's.
@@ -126,25 +126,31 @@ def carries_information(y, n_eff: int, scale: float = 0.0) -> bool:
     return bool(norm > NULL_TOL * max(np.sqrt(max(n_eff, 1)), float(scale)))
 
 
-def marginal_score(J, y, Omega, n_eff: int, lam: float, scale2: float | None = None) -> float:
-    """``-2 log p(y | q)`` (up to a constant) of the whitened linearised problem ``y ≈ Jθ``
-    under the prior precision ``λΩ``, the noise scale profiled out (:mod:`.weight`'s marginal
-    likelihood at the given λ): smooth in ``J`` and ``y``, hence in ``q``.
-
-    With ``scale2`` the noise variance (whitened units: 1 is the stated σ) is held at that
-    value instead: ``Q/s² + N' log s² + log det(I + λ⁻¹J̃ᵀJ̃)``."""
+def marginal_parts(J, y, Omega, lam: float) -> tuple[float, float]:
+    """The two terms of the marginal likelihood of the whitened linearised problem ``y ≈ Jθ``
+    under the prior precision ``λΩ`` (:mod:`.weight`): the quadratic form ``Q`` (``Q/N'`` is the
+    noise variance the profile takes, ``ŝ²``; 1 where the data scatter as their stated σ say)
+    and ``log det(I + λ⁻¹J̃ᵀJ̃)``. One SVD; :func:`score_of_parts` makes the score of them."""
     sp = _Spectrum(np.asarray(J, float), np.asarray(y, float), np.asarray(Omega, float))
-    if scale2 is None:
-        return float(sp.score(float(lam), "ml", n_eff))
     Q, logdet = sp.ml_parts(float(lam))
+    return float(Q), float(logdet)
+
+
+def score_of_parts(Q: float, logdet: float, n_eff: int, scale2: float | None = None) -> float:
+    """``-2 log p(y | q)`` (up to a constant) from :func:`marginal_parts`: the noise scale
+    profiled out, ``N' log Q + log det``; with ``scale2`` the noise variance (whitened units: 1 is
+    the stated σ) held at that value instead, ``Q/s² + N' log s² + log det``."""
+    if scale2 is None:
+        return float(ml_score(Q, logdet, n_eff))
     return float(Q / scale2 + n_eff * np.log(scale2) + logdet)
 
 
-def noise_variance(J, y, Omega, n_eff: int, lam: float) -> float:
-    """The noise variance the profiled score takes, ``ŝ² = Q/N'`` (whitened units: 1 where the
-    data scatter as their stated σ say)."""
-    sp = _Spectrum(np.asarray(J, float), np.asarray(y, float), np.asarray(Omega, float))
-    return float(sp.ml_parts(float(lam))[0] / max(n_eff, 1))
+def marginal_score(J, y, Omega, n_eff: int, lam: float, scale2: float | None = None) -> float:
+    """``-2 log p(y | q)`` (up to a constant) of the whitened linearised problem ``y ≈ Jθ``
+    under the prior precision ``λΩ``, the noise scale profiled out (:mod:`.weight`'s marginal
+    likelihood at the given λ) or, with ``scale2``, held (:func:`score_of_parts`): smooth in
+    ``J`` and ``y``, hence in ``q``."""
+    return score_of_parts(*marginal_parts(J, y, Omega, lam), n_eff, scale2)
 
 
 def _stencil(f, q, h):

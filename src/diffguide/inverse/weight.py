@@ -85,8 +85,7 @@ class _Spectrum:
         lam = np.asarray(lam, float)
         if criterion == "gcv":
             return n_eff * self.residual2(lam) / np.maximum(n_eff - self.edf(lam), 1e-9) ** 2
-        Q, logdet = self.ml_parts(lam)
-        return n_eff * np.log(np.maximum(Q, 1e-300)) + logdet
+        return ml_score(*self.ml_parts(lam), n_eff)
 
     def ml_parts(self, lam):
         """The marginal likelihood's two terms at ``λ``: the quadratic form
@@ -96,6 +95,12 @@ class _Spectrum:
         Q = self.y_perp2 + np.sum(lam[..., None] / (self.s2 + lam[..., None]) * self.b**2,
                                   axis=-1)
         return Q, np.sum(np.log1p(self.s2 / lam[..., None]), axis=-1)
+
+
+def ml_score(Q, logdet, n_eff):
+    """``−2 log p`` of the marginal likelihood from its two terms (:meth:`_Spectrum.ml_parts`),
+    the noise scale profiled out: ``N' log Q + log det``."""
+    return n_eff * np.log(np.maximum(Q, 1e-300)) + logdet
 
 
 def project_out(F, *arrays):
