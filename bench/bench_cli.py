@@ -139,9 +139,12 @@ def _python(code: str, *args) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def bench_steady() -> dict:
+MESHES = ((20, 10), (60, 30), (100, 50))
+
+
+def bench_steady(meshes=MESHES) -> dict:
     res = {}
-    for nx, ny in ((20, 10), (60, 30), (100, 50)):
+    for nx, ny in meshes:
         r = _python(_CONDENSE, nx, ny)
         res[f"condense {nx}x{ny}"] = r
         print(
@@ -166,24 +169,20 @@ def _fmt(v, unit="s", scale=1.0):
     return f"{med:.3g} {unit} ({min(v) * scale:.3g}–{max(v) * scale:.3g})"
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--repeats", type=int, default=3, help="fresh processes per CLI figure")
-    p.add_argument("--skip-cli", action="store_true")
-    p.add_argument("--skip-steady", action="store_true")
-    a = p.parse_args()
+def machine_line() -> str:
+    """The machine and the stack, in one line."""
     import jax
 
-    load0 = _load()
-    print(
-        f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.system()}; "
-        f"Python {platform.python_version()}, jax {jax.__version__}; load average "
-        f"(1/5/15 min) at start {load0}",
-        flush=True,
+    return (
+        f"{platform.machine()}, {os.cpu_count()} CPUs, {platform.system()}; "
+        f"Python {platform.python_version()}, jax {jax.__version__}"
     )
+
+
+def table_rows(cli: dict | None, st: dict | None) -> list[tuple[str, str, str]]:
+    """(benchmark, figure, target) rows from :func:`bench_cli` and :func:`bench_steady`."""
     rows = []
-    if not a.skip_cli:
-        cli = bench_cli(a.repeats)
+    if cli:
         for name, target1, target2 in (("fit", "≤ 10 s", "≤ 5 s"), ("simulate", "≤ 5 s", "≤ 5 s")):
             rows.append(
                 (f"`diffguide {name}` end to end, empty cache", _fmt(cli[name]["first"]), target1)
@@ -191,8 +190,7 @@ def main():
             rows.append(
                 (f"`diffguide {name}` end to end, second run", _fmt(cli[name]["second"]), target2)
             )
-    if not a.skip_steady:
-        st = bench_steady()
+    if st:
         targets = {"20x10": "", "60x30": "≤ 2 s", "100x50": "≤ 10 s"}
         for key, r in st.items():
             if key.startswith("condense"):
@@ -212,12 +210,25 @@ def main():
                 "≤ 5 ms",
             )
         )
+    return rows
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--repeats", type=int, default=3, help="fresh processes per CLI figure")
+    p.add_argument("--skip-cli", action="store_true")
+    p.add_argument("--skip-steady", action="store_true")
+    a = p.parse_args()
+    load0 = _load()
+    print(f"machine: {machine_line()}; load average (1/5/15 min) at start {load0}", flush=True)
+    cli = None if a.skip_cli else bench_cli(a.repeats)
+    st = None if a.skip_steady else bench_steady()
     print(
         f"\nload average at the end {_load()} (start {load0}); medians (min–max) of "
         f"{a.repeats} fresh processes for the CLI\n"
     )
     print("| benchmark | figure | target |\n|---|---|---|")
-    for r in rows:
+    for r in table_rows(cli, st):
         print(f"| {r[0]} | {r[1]} | {r[2]} |")
 
 
