@@ -4,6 +4,8 @@
   HertzBall``) without an ``__all__``; griffe treats imported names as private unless listed
   there. Every such alias that points inside the package is marked public, so that
   ``::: diffguide.contact`` documents the names a user imports from it.
+- A compiled entry point, ``joint_errors = eqx.filter_jit(joint_errors_traced)``, takes the
+  docstring of the function it compiles.
 - The top-level package loads its public API lazily from the ``_LAZY`` table (name -> the module
   that defines it), which static analysis cannot see; the table is read from the source and each
   name becomes an alias, so that ``::: diffguide.read_measurements`` finds the function wherever
@@ -11,8 +13,12 @@
 """
 
 import ast
+import re
 
 import griffe
+
+#: ``name = eqx.filter_jit(name_traced)``, ``name = jax.jit(f)``: a compiled entry point
+_JITTED = re.compile(r"jit\((\w+)\)$")
 
 
 class PublicReexports(griffe.Extension):
@@ -35,8 +41,26 @@ class PublicReexports(griffe.Extension):
             if isinstance(member, griffe.Alias):
                 if not name.startswith("_") and member.target_path.startswith(prefix):
                     member.public = True
+                    try:  # a function re-exported under its module's name hides the module
+                        _document_jitted(member.final_target)
+                    except griffe.AliasResolutionError:
+                        pass
             elif isinstance(member, griffe.Module):
                 self._mark(member, prefix)
+            else:
+                _document_jitted(member)
+
+def _document_jitted(member) -> None:
+    """A compiled entry point (``joint_errors = eqx.filter_jit(joint_errors_traced)``) takes the
+    docstring of the function it compiles."""
+    if not isinstance(member, griffe.Attribute) or member.docstring is not None:
+        return
+    match = _JITTED.search(str(member.value or ""))
+    wrapped = member.parent.members.get(match.group(1)) if match else None
+    if wrapped is not None and not wrapped.is_alias and wrapped.docstring:
+        member.docstring = griffe.Docstring(
+            wrapped.docstring.value, lineno=wrapped.docstring.lineno, parent=member
+        )
 
 
 def _lazy_table(source: str) -> dict[str, str]:
