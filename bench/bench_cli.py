@@ -183,7 +183,8 @@ def table_rows(cli: dict | None, st: dict | None) -> list[tuple[str, str, str]]:
     """(benchmark, figure, target) rows from :func:`bench_cli` and :func:`bench_steady`."""
     rows = []
     if cli:
-        for name, target1, target2 in (("fit", "≤ 10 s", "≤ 5 s"), ("simulate", "≤ 5 s", "≤ 5 s")):
+        targets = (("fit", "≤ 10 s", "≤ 5 s"), ("simulate", "≤ 5 s", "≤ 5 s"))
+        for name, target1, target2 in targets:
             rows.append(
                 (f"`diffguide {name}` end to end, empty cache", _fmt(cli[name]["first"]), target1)
             )

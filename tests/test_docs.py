@@ -47,7 +47,9 @@ def test_the_site_builds_with_no_warning(site):
 
 def test_the_site_needs_no_network(site):
     out, _ = site
-    remote = re.compile(r"<(?:script|img)[^>]*\bsrc=\"(?:https?:)?//|<link[^>]*\bhref=\"(?:https?:)?//")
+    remote = re.compile(
+        r"<(?:script|img)[^>]*\bsrc=\"(?:https?:)?//|<link[^>]*\bhref=\"(?:https?:)?//"
+    )
     for html in out.rglob("*.html"):
         match = remote.search(html.read_text(encoding="utf-8"))
         assert match is None, f"{html.relative_to(out)}: {match.group(0)}"
@@ -65,7 +67,8 @@ def test_the_api_page_names_the_main_entry_points(site):
 def test_the_python_examples_of_each_page_run(page, monkeypatch):
     """Every ```python block of a page runs, in order, in one namespace (```text, ```bash and
     any other fence are not run)."""
-    blocks = re.findall(r"^```python\n(.*?)^```", page.read_text(encoding="utf-8"), flags=re.S | re.M)
+    text = page.read_text(encoding="utf-8")
+    blocks = re.findall(r"^```python\n(.*?)^```", text, flags=re.S | re.M)
     if not blocks:
         pytest.skip("no Python examples")
     monkeypatch.chdir(ROOT)  # the examples read data/ relative to the repository
