@@ -7,7 +7,7 @@ The layers, in data-flow order (each a subpackage; everything public is re-expor
 :mod:`.contact` (contact laws) -> :mod:`.guideway` (rails, carriages) -> :mod:`.fe` (the table)
 -> :mod:`.machine` (equilibrium, joint errors) -> :mod:`.inverse` (identification);
 :mod:`.studies` (Monte Carlo, sensitivity, compensation) use them; :mod:`.io`, :mod:`.plotting`
-and :mod:`.cli` are the edge. ``presets`` holds every value of the built-in machines.
+and :mod:`.cli` are the edge. ``presets`` names the built-in machines and parts.
 
 The library never changes JAX's configuration on import: call :func:`enable_x64` first.
 """
