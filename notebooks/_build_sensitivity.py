@@ -47,7 +47,7 @@ import numpy as np
 import matplotlib.pyplot as plt
 from matplotlib.colors import SymLogNorm
 from diffguide.machine.build import build_machine
-from diffguide.io.config import default_config
+from diffguide.io.config import default_config, spec_from_config
 from diffguide.machine.kinematics import joint_errors
 from diffguide.machine.majda2012 import paper_variant
 from diffguide.studies.sensitivity import (CORNERS, bump_centres, corner_roll, influence_map,
@@ -79,7 +79,8 @@ derivative is that of a machine rebuilt with the new spacing.
 def study(p):
     \"\"\"(roll spread D in µrad, corner rolls in rad) at p = (thickness m, spacing m,
     preload fraction of C).\"\"\"
-    machine = build_machine(cfg, thickness=p[0], carriage_spacing=p[1], preload_fraction=p[2])
+    machine = build_machine(spec_from_config(cfg), thickness=p[0], carriage_spacing=p[1],
+                            preload_fraction=p[2])
     roll = corner_roll(joint_errors(machine, rails, positions))
     return roll_spread(roll), roll
 
@@ -122,8 +123,8 @@ def rebuilt(k, value):
     c = {sec: dict(v) if isinstance(v, dict) else v for sec, v in cfg.items()}
     if k == 1:
         c["guideway"]["carriage_x_mm"] = (-500 * value, 500 * value)   # spacing (m) -> ±x (mm)
-        return build_machine(c)
-    return build_machine(c, **{("thickness", None, "preload_fraction")[k]: value})
+        return build_machine(spec_from_config(c))
+    return build_machine(spec_from_config(c), **{("thickness", None, "preload_fraction")[k]: value})
 
 steps = (1e-5, 1e-5, 1e-5)
 print(f"{'parameter':>17s} {'value':>7s} {'dD/dp (AD)':>14s} {'finite diff.':>14s} "
@@ -174,7 +175,7 @@ the two carriages on rail 1. (The colour scale is logarithmic above 0.02 µrad/�
 """),
     code("""
 srails = spline_rails(rails, start=-0.6, stop=0.6, spacing=0.02)
-machine = build_machine(cfg)
+machine = build_machine(spec_from_config(cfg))
 sweep = np.linspace(-0.35, 0.35, 71)
 t0 = time.perf_counter()
 J = np.asarray(influence_map(machine, srails, sweep, rail=0, plane="vertical"))  # µrad per µm

@@ -62,7 +62,7 @@ def test_every_command_has_the_common_flags_and_clean_help(name):
     assert "exit status:" in text and "3  a solve did not converge" in text
 
 
-def test_mesh_option_and_deprecated_aliases(capsys):
+def test_mesh_option_and_no_nx_ny():
     assert parse_mesh_text("20x10") == (20, 10)
     for bad in ("20", "0x10", "ax3", "20x10x1"):
         with pytest.raises(ValueError, match="--mesh"):
@@ -70,12 +70,12 @@ def test_mesh_option_and_deprecated_aliases(capsys):
     args = argparse.Namespace(mesh="12x6", nx=None, ny=None)
     normalise_mesh(args, "fit")
     assert (args.nx, args.ny) == (12, 6)
-    args = argparse.Namespace(mesh=None, nx=12, ny=6)
+    args = argparse.Namespace(mesh=None)
     normalise_mesh(args, "table")
-    assert args.mesh == "12x6"
-    assert "deprecated" in capsys.readouterr().err
-    with pytest.raises(ValueError, match="once"):
-        normalise_mesh(argparse.Namespace(mesh="4x2", nx=4, ny=None), "simulate")
+    assert (args.nx, args.ny) == (None, None)  # the machine's own mesh
+    for name in MESH_COMMANDS:  # the 0.1 spellings --nx/--ny are gone
+        flags = _sub(name)._option_string_actions
+        assert "--nx" not in flags and "--ny" not in flags, name
 
 
 def test_cache_dir_choice(monkeypatch, tmp_path):

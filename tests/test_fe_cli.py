@@ -10,7 +10,7 @@ from diffguide.cli import main
 
 def test_table_command_writes_plot_and_csv(tmp_path, capsys):
     png, out = tmp_path / "table.png", tmp_path / "nodes.csv"
-    rc = main(["table", "--preset", "majda2012", "--nx", "10", "--ny", "5", "--plot", str(png),
+    rc = main(["table", "--preset", "majda2012", "--mesh", "10x5", "--plot", str(png),
                "--out", str(out)])
     assert rc == 0
     text = capsys.readouterr().out
@@ -32,5 +32,5 @@ def test_table_command_writes_plot_and_csv(tmp_path, capsys):
 
 
 def test_table_command_rejects_bad_mesh(capsys):
-    assert main(["table", "--nx", "0"]) == 2
-    assert "--nx" in capsys.readouterr().err
+    assert main(["table", "--mesh", "0x5"]) == 2
+    assert "--mesh" in capsys.readouterr().err

@@ -1,17 +1,187 @@
-"""The package layout: layers visible at the top level, old import paths kept for one release."""
+"""The package layout: the layers in one order, every import going down it.
 
-import importlib
+``_core -> contact -> guideway -> fe -> machine -> inverse -> studies -> io -> plotting -> cli``,
+then ``presets`` (data the CLI and users choose) and the root ``__init__`` (the public
+namespace). A module imports only from its own layer or an earlier one, at module level and
+inside functions alike; the one exception is the CLI's lazy imports inside its functions (a fast
+``--help``). Nothing in the library imports ``presets``.
+"""
+
+import ast
+import subprocess
 import sys
-import warnings
 from pathlib import Path
 
-import numpy as np
-import pytest
-
 import diffguide
-from diffguide._core.aliases import MOVED
 
 PACKAGE = Path(diffguide.__file__).parent
+LAYERS = ("_core", "contact", "guideway", "fe", "machine", "inverse", "studies", "io",
+          "plotting", "cli", "presets", "__init__")
+RANK = {name: i for i, name in enumerate(LAYERS)}
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(PACKAGE).with_suffix("")
+    parts = ["diffguide", *rel.parts]
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _layer(module: str) -> str:
+    """The layer of a dotted ``diffguide...`` module name (``diffguide`` itself: the root)."""
+    parts = module.split(".")
+    return "__init__" if len(parts) == 1 else parts[1]
+
+
+MODULES = {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def _imports(path: Path):
+    """``(line, target module, module level?)`` for every import of ``diffguide`` in a file,
+    relative or absolute, at module level or inside functions and classes."""
+    module = _module_name(path)
+    package = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    top = {id(node) for node in tree.body}
+    top |= {id(n) for node in tree.body if isinstance(node, (ast.If, ast.Try))
+            for n in ast.walk(node)}  # `if TYPE_CHECKING:` / `try:` at module level
+    for node in ast.walk(tree):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - node.level + 1]
+                base = ".".join(base + ([node.module] if node.module else []))
+            else:
+                base = node.module or ""
+            # "from .. import presets" imports a module; "from .x import y" imports from .x
+            names = [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base
+                     for a in node.names]
+        for name in dict.fromkeys(names):  # a name that is no module file: reported as such
+            if name == "diffguide" or name.startswith("diffguide."):
+                yield node.lineno, name, id(node) in top
+
+
+def _edges():
+    for module, path in MODULES.items():
+        for line, target, at_top in _imports(path):
+            if target != module:
+                yield module, path, line, target, at_top
+
+
+def test_every_module_has_a_layer():
+    assert {_layer(m) for m in MODULES} <= set(LAYERS)
+
+
+def test_every_import_names_a_module_file():
+    """No import goes through a name without a file (an import hook's alias)."""
+    bad = [
+        f"{path.relative_to(PACKAGE)}:{line} -> {target}"
+        for _, path, line, target, _ in _edges()
+        if target not in MODULES
+    ]
+    assert not bad, "imports of modules that do not exist:\n" + "\n".join(bad)
+
+
+def test_imports_go_down_the_layers():
+    bad = []
+    for module, path, line, target, at_top in _edges():
+        here, there = _layer(module), _layer(target)
+        if here in ("presets", "__init__"):
+            continue  # data chosen from above, and the public namespace
+        if here == "cli" and not at_top:
+            continue  # lazy imports inside the CLI's functions
+        if there not in RANK or RANK[there] > RANK[here]:
+            bad.append(f"{path.relative_to(PACKAGE)}:{line} -> {target}")
+    assert not bad, "imports up the layers:\n" + "\n".join(bad)
+
+
+def test_only_the_cli_and_the_root_import_presets():
+    bad = [
+        f"{path.relative_to(PACKAGE)}:{line} -> {target}"
+        for module, path, line, target, _ in _edges()
+        if _layer(target) == "presets" and _layer(module) not in ("cli", "presets", "__init__")
+    ]
+    assert not bad, bad
+
+
+def _cycles(graph):
+    """Every cycle a depth-first search over ``graph`` (module -> imported modules) meets."""
+    cycles, state, stack = [], {}, []
+
+    def visit(node):
+        state[node] = "open"
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == "open":
+                cycles.append(" -> ".join(stack[stack.index(nxt):] + [nxt]))
+            elif nxt not in state:
+                visit(nxt)
+        stack.pop()
+        state[node] = "done"
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node)
+    return cycles
+
+
+def test_no_import_cycles():
+    """No cycle among the modules' module-level imports."""
+    graph = {module: set() for module in MODULES}
+    for module, _, _, target, at_top in _edges():
+        if at_top and target in MODULES:
+            graph[module].add(target)
+    cycles = _cycles(graph)
+    assert not cycles, "import cycles:\n" + "\n".join(cycles)
+
+
+def test_no_import_cycles_through_functions():
+    """Counting the imports inside functions that cross layers too, no cycle outside the CLI
+    and the root (they sit above everything and import lazily). A lazy import within one layer
+    (a default built by a module that builds on this one) is not counted."""
+    top = ("cli", "__init__")
+    graph = {module: set() for module in MODULES if _layer(module) not in top}
+    for module, _, _, target, at_top in _edges():
+        here, there = _layer(module), _layer(target)
+        if target in MODULES and here not in top and there not in top and (
+            at_top or here != there
+        ):
+            graph[module].add(target)
+    cycles = _cycles(graph)
+    assert not cycles, "import cycles:\n" + "\n".join(cycles)
+
+
+def test_import_leaves_the_import_system_alone():
+    code = (
+        "import sys; before = list(sys.meta_path); import diffguide; "
+        "diffguide.Material; diffguide.presets; "
+        "assert sys.meta_path == before, sys.meta_path"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
+
+
+def test_no_module_getattr_except_the_root():
+    bad = []
+    for module, path in MODULES.items():
+        if module == "diffguide":
+            continue
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.FunctionDef) and node.name == "__getattr__":
+                bad.append(str(path.relative_to(PACKAGE)))
+    assert not bad, bad
+
+
+def test_no_compatibility_modules():
+    for rel in ("_core/aliases.py", "io/files.py"):
+        assert not (PACKAGE / rel).exists(), rel
+    for old in ("kinematics", "rails", "config", "measurements", "_precision", "_types"):
+        assert not (PACKAGE / f"{old}.py").exists()
+        code = f"import diffguide.{old}"
+        run = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=300)
+        assert run.returncode != 0 and b"ModuleNotFoundError" in run.stderr, code
 
 
 def test_top_level_shows_the_layers():
@@ -20,31 +190,14 @@ def test_top_level_shows_the_layers():
         p.name for p in PACKAGE.iterdir() if p.name not in markers and not p.name.startswith(".")
     )
     assert len(entries) <= 12, entries
-    assert "measurements.py" not in entries  # now io/measurements.py + inverse/data.py
+    assert {p.split(".")[0] for p in entries} == set(LAYERS)
 
 
-@pytest.mark.parametrize("old", sorted(MOVED))
-def test_old_module_path_is_the_new_module_and_warns(old):
-    new = importlib.import_module(MOVED[old])
-    sys.modules.pop(old, None)
-    with pytest.warns(DeprecationWarning, match=MOVED[old].replace(".", r"\.")):
-        alias = importlib.import_module(old)
-    assert alias is new
-    assert alias.__spec__.name == MOVED[old]  # the shared module keeps its own spec
-    assert not (PACKAGE / (old.split(".")[-1] + ".py")).exists()
-
-
-def test_old_from_imports_and_attributes():
-    from diffguide.machine.kinematics import joint_errors as new
-
-    sys.modules.pop("diffguide.kinematics", None)
-    with pytest.warns(DeprecationWarning):
-        from diffguide.kinematics import joint_errors
-    assert joint_errors is new
-    vars(diffguide).pop("sensitivity", None)  # set by an earlier import of the old path
-    with pytest.warns(DeprecationWarning):
-        assert diffguide.sensitivity is importlib.import_module("diffguide.studies.sensitivity")
-    # modules that kept their name are packages re-exporting what they had
+def test_public_names_answer():
+    """Every public name of the root namespace resolves, and the layer packages re-export
+    what they had."""
+    for name in diffguide.__all__:
+        assert getattr(diffguide, name) is not None, name
     from diffguide.contact import HertzBall
     from diffguide.guideway import Carriage, majda2012_carriage  # noqa: F401
     from diffguide.io import atomic_savefig, read_rails_csv  # noqa: F401
@@ -53,99 +206,25 @@ def test_old_from_imports_and_attributes():
     assert HertzBall is diffguide.HertzBall
 
 
-def test_old_names_of_moved_functions_and_dicts_still_work_and_warn():
-    """diffguide 0.1's names that moved within a module's layer (the tests use the new ones):
-    ``fe.majda2012_table``, ``build.carriage_from_config``/``table_from_config``,
-    ``build_machine(config dict)`` and ``presets.MAJDA2012_TABLE`` — each still answers, with a
-    DeprecationWarning naming where it went."""
-    import diffguide.fe as fe
-    import diffguide.machine.build as build
-    import diffguide.presets as presets
-    from diffguide.io import config
-    from diffguide.machine.majda2012 import majda2012_table
-
-    with pytest.warns(DeprecationWarning, match=r"diffguide\.machine\.majda2012"):
-        assert fe.majda2012_table is majda2012_table
-    for name in ("carriage_from_config", "table_from_config"):
-        with pytest.warns(DeprecationWarning, match=rf"diffguide\.io\.config\.{name}"):
-            assert getattr(build, name) is getattr(config, name)
-    with pytest.warns(DeprecationWarning, match=r"presets\.majda2012\(\)"):
-        assert presets.MAJDA2012_TABLE["thickness"] == presets.majda2012().table.thickness
-    cfg = config.default_config()
-    with pytest.warns(DeprecationWarning, match="MachineSpec"):
-        old = build.build_machine(cfg, nx=4, ny=2)
-    new = build.build_machine(config.spec_from_config(cfg), nx=4, ny=2)
-    assert old.point_names == new.point_names
-    assert np.array_equal(np.asarray(old.table.K), np.asarray(new.table.K))
-
-
-@pytest.mark.parametrize(
-    "statement",
-    [
-        "from ..kinematics import joint_errors",
-        "from ..machine import Machine",
-        "from ..rails import SplineRail",
-        "from .._precision import require_x64",
-        "from .._types import Array, Float",
-        "from ..measurements import QUANTITIES",
-    ],
-)
-def test_relative_old_imports_inside_the_package_are_silent(statement):
-    for old in MOVED:
-        sys.modules.pop(old, None)
-    scope = {"__name__": "diffguide.inverse._probe", "__package__": "diffguide.inverse"}
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        exec(statement, scope)
-
-
 # --- the core does not know about files, formats, the CLI or plotting ------------------------
 
 CORE = ("_core", "contact", "guideway", "fe", "machine", "inverse")
-EDGE = ("diffguide.io", "diffguide.cli", "diffguide.plotting", "diffguide.measurements")
 FORMATS = ("csv", "tomllib", "json", "argparse", "matplotlib")
-#: Imports from the core to the edge inside a function, each a documented convenience.
-ALLOWED = {
-    ("machine/kinematics.py", "diffguide.io.units"),  # JointErrors.user_units()
-    # build_machine(dict) and carriage/table_from_config: the deprecated 0.1 paths
-    ("machine/build.py", "diffguide.io.config"),
-}
 
 
-def _imports(path: Path):
-    """``(module, absolute name)`` of every import in a file (module level or not)."""
-    import ast
-
-    rel = path.relative_to(PACKAGE)
-    package = ["diffguide", *rel.parent.parts]
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            for alias in node.names:
-                yield alias.name
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package[: len(package) - node.level + 1]
-                name = ".".join(base + ([node.module] if node.module else []))
-            else:
-                name = node.module
-            yield name
-            for alias in node.names:  # "from .. import presets"
-                yield f"{name}.{alias.name}"
-
-
-def test_core_imports_no_file_formats_cli_or_plotting():
+def test_core_imports_no_file_formats():
     bad = []
     for top in CORE:
         for path in sorted((PACKAGE / top).rglob("*.py")):
-            rel = str(path.relative_to(PACKAGE))
-            for name in _imports(path):
-                edge = name.startswith(EDGE) or name.split(".")[0] in FORMATS
-                allowed = any(
-                    rel == r and (name == p or name.startswith(p + ".") or p.startswith(name + "."))
-                    for r, p in ALLOWED
-                )
-                if edge and not allowed:
-                    bad.append(f"{rel}: {name}")
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Import):
+                    names = [alias.name for alias in node.names]
+                elif isinstance(node, ast.ImportFrom) and not node.level:
+                    names = [node.module or ""]
+                else:
+                    continue
+                bad += [f"{path.relative_to(PACKAGE)}:{node.lineno} {n}" for n in names
+                        if n.split(".")[0] in FORMATS]
     assert not bad, bad
 
 

@@ -31,6 +31,25 @@ def test_spec_round_trips_through_the_configuration():
     assert "thickness_mm = 50.0" in dump_config(cfg)
 
 
+def test_build_machine_takes_only_a_spec():
+    """One way to build a machine: a configuration dictionary (diffguide 0.1) is refused before
+    anything is built, with the two ways to a spec named."""
+    from diffguide.machine.build import build_machine
+
+    with pytest.raises(TypeError, match=r"spec_from_config\(cfg\).*presets\.majda2012\(\)"):
+        build_machine(default_config(), nx=2, ny=2)
+
+
+def test_error_units_are_the_iso_names_in_micrometres_and_microradians():
+    from diffguide.machine.errors import ERROR_UNITS, error_columns, to_user
+    from diffguide.machine.kinematics import ERROR_NAMES
+
+    assert ERROR_NAMES == ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX")
+    assert ERROR_UNITS == ("um",) * 3 + ("urad",) * 3
+    assert error_columns()[0] == "EXX_um" and error_columns("_sd")[5] == "ECX_sd_urad"
+    np.testing.assert_array_equal(to_user(np.full((2, 6), 1e-6)), np.ones((2, 6)))
+
+
 def test_spec_fields_can_be_traced_and_replaced():
     spec = presets.majda2012()
     f = jax.jit(lambda t: eqx.tree_at(lambda s: s.table.thickness, spec, t).table.thickness * 2)

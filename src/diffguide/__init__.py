@@ -7,18 +7,14 @@ The layers, in data-flow order (each a subpackage; everything public is re-expor
 :mod:`.contact` (contact laws) -> :mod:`.guideway` (rails, carriages) -> :mod:`.fe` (the table)
 -> :mod:`.machine` (equilibrium, joint errors) -> :mod:`.inverse` (identification);
 :mod:`.studies` (Monte Carlo, sensitivity, compensation) use them; :mod:`.io`, :mod:`.plotting`
-and :mod:`.cli` are the edge. ``presets`` holds every value of the built-in machines.
+and :mod:`.cli` are the edge. ``presets`` names the built-in machines and parts.
 
 The library never changes JAX's configuration on import: call :func:`enable_x64` first.
 """
 
 from importlib import import_module as _import_module
 
-from ._core import aliases as _aliases
-
-_aliases.install()  # old module paths (diffguide 0.1), see diffguide._core.aliases
-
-__version__ = "0.2.0"
+from ._core.version import __version__ as __version__
 
 #: the public API: name -> the module that defines it, imported on first use (so that
 #: ``import diffguide`` and ``diffguide --help`` do not import JAX)
@@ -92,22 +88,17 @@ _SUBMODULES = ("cli", "contact", "fe", "guideway", "inverse", "io", "machine", "
 
 
 def __getattr__(name: str):
-    """The public API on first use; ``diffguide.kinematics`` etc. (old flat modules,
-    deprecated)."""
+    """The public API (:data:`_LAZY`) and the subpackages (:data:`_SUBMODULES`), imported on
+    first use."""
     if name in _LAZY:
         from ._core.stack import check_stack
 
         check_stack()  # a clear warning on a JAX version known to misbehave
         value = getattr(_import_module(_LAZY[name], __name__), name)
         globals()[name] = value
-        _aliases.forget()  # the package's own imports of old names leave no trace for users
         return value
     if name in _SUBMODULES:
         return _import_module(f".{name}", __name__)
-    old = f"{__name__}.{name}"
-    if old in _aliases.MOVED:
-        _aliases.deprecated(old, stacklevel=2)
-        return _import_module(_aliases.MOVED[old])
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

@@ -6,13 +6,13 @@ from pathlib import Path
 
 import jax
 
+from .version import __version__
+
 
 def code_fingerprint(fmt: int, root: Path, pattern: str) -> str:
     """SHA-256 (hex) of a cache's file-format number ``fmt``, the diffguide, JAX and jaxlib
     versions, and every source file below ``root`` matching ``pattern`` (its path relative to
     ``root`` and its bytes, in sorted order)."""
-    from .. import __version__
-
     h = hashlib.sha256(f"{fmt}|{__version__}|{jax.__version__}|".encode())
     try:
         import jaxlib

@@ -38,7 +38,7 @@ _COMMANDS = {
 def _version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
-    from .. import __version__
+    from .._core.version import __version__
 
     deps = []
     for dist in ("jax", "jaxlib", "equinox", "optimistix", "lineax"):

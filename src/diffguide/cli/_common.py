@@ -160,9 +160,6 @@ def add_common_arguments(p: argparse.ArgumentParser, name: str) -> None:
                 help="table mesh: uniform divisions along X and Y before the footprint lines "
                 "(default: the machine's, 20x10 for majda2012)",
             )
-        for axis in ("nx", "ny"):  # 0.1 spellings, kept for one release
-            if not _has(p, f"--{axis}"):
-                g.add_argument(f"--{axis}", type=int, default=None, help=argparse.SUPPRESS)
     g.add_argument(
         "--cache-dir",
         metavar="DIR",
@@ -179,26 +176,12 @@ def add_common_arguments(p: argparse.ArgumentParser, name: str) -> None:
 
 
 def normalise_mesh(args, name: str) -> None:
-    """One mesh for the command: ``--mesh NXxNY`` sets ``args.nx``/``args.ny``; the deprecated
-    ``--nx``/``--ny`` set ``args.mesh`` (with a warning); ``ValueError`` when both disagree."""
+    """One mesh for the command: ``--mesh NXxNY`` sets ``args.nx``/``args.ny`` (``None``
+    without it: the machine's own mesh); a clear ``ValueError`` for a malformed ``--mesh``."""
     if name not in MESH_COMMANDS:
         return
-    mesh, nx, ny = getattr(args, "mesh", None), getattr(args, "nx", None), getattr(args, "ny", None)
-    if nx is not None or ny is not None:
-        print(
-            f"diffguide {name}: warning: --nx/--ny are deprecated; use --mesh NXxNY",
-            file=sys.stderr,
-        )
-        if mesh is not None:
-            raise ValueError("give the mesh once: --mesh NXxNY (not with --nx/--ny)")
-        for flag, v in (("--nx", nx), ("--ny", ny)):
-            if v is not None and v < 1:
-                raise ValueError(f"{flag} must be an integer >= 1, got {v}")
-        if nx is not None and ny is not None:
-            args.mesh = f"{nx}x{ny}"
-        return
-    if mesh is not None:
-        args.nx, args.ny = parse_mesh_text(mesh)
+    mesh = getattr(args, "mesh", None)
+    args.nx, args.ny = (None, None) if mesh is None else parse_mesh_text(mesh)
 
 
 def cache_dir(args) -> Path | None:

@@ -84,8 +84,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "it from the rails' grade): added in quadrature to every profile σ; default: "
                    "the config's [fit] rail_waviness_um, else 0 (the bands cover only what the "
                    "knots resolve)")
-    p.add_argument("--nx", type=int, default=None, help=argparse.SUPPRESS)  # deprecated: --mesh
-    p.add_argument("--ny", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--rigid", dest="rigid", action="store_const", const=True, default=None,
                    help="also run the classical rigid-table inversion (rails_rigid.csv, its "
                    "columns in fit.csv and report.json, a dashed curve in the plots); it costs "

@@ -114,7 +114,7 @@ def summary(result) -> str:
     """Percentiles (5, 50, 95 %) of the ranges at each point and of the corner roll differences."""
     ok = result.converged
     lines = ["percentiles over converged samples (5 % / 50 % / 95 %):"]
-    from ..io.units import ERRORS
+    from ..machine.errors import ERRORS
 
     head = "  point " + "".join(f"{e.name + ' ' + e.unit:>24}" for e in ERRORS)
     lines.append(head)

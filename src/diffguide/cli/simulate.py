@@ -129,7 +129,7 @@ def run(args) -> int:
     from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
     from ..io.config import spec_from_config
     from ..io.rails_csv import read_rails_csv
-    from ..io.units import error_columns
+    from ..machine.errors import error_columns
     from ..machine.build import build_machine
     from ..machine.kinematics import joint_errors
     from ..machine.majda2012 import paper_variant

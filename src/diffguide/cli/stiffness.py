@@ -35,7 +35,7 @@ def add_parser(sub) -> None:
 
 
 def carriage_for(preset: str):
-    from ..guideway.carriage import majda2012_carriage, roller25_carriage
+    from ..guideway.blocks import majda2012_carriage, roller25_carriage
 
     if preset == "majda2012":
         return majda2012_carriage("hertz")

@@ -79,19 +79,3 @@ from .table import TableModel as TableModel
 from .table import TableSpec as TableSpec
 from .table import table_model as table_model
 
-
-def __getattr__(name: str):
-    """``majda2012_table`` moved to :mod:`diffguide.machine.majda2012` (the fe layer knows no
-    presets); the old name works for one release."""
-    if name == "majda2012_table":
-        import warnings
-
-        from ..machine.majda2012 import majda2012_table
-
-        warnings.warn(
-            "diffguide.fe.majda2012_table moved to diffguide.machine.majda2012.majda2012_table",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return majda2012_table
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

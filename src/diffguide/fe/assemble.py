@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array, Float, ScalarLike
+from .._core.types import Array, Float, ScalarLike
 from ._xp import memo
 from .beam import beam_load, beam_stiffness, rect_section
 from .materials import CAST_IRON, Material

@@ -35,8 +35,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.rigid import rigid_transfer
-from .._precision import require_x64
-from .._types import Array, Float, ScalarLike
+from .._core.precision import require_x64
+from .._core.types import Array, Float, ScalarLike
 from . import banded
 from . import cache as table_cache
 from ._xp import congruence

@@ -1,13 +1,16 @@
 """Guideway layer: rail error profiles, a rigid carriage on its rail (rows of preloaded
-elements), and one carriage's equilibrium and static characteristic."""
+elements), the paper's and a roller runner block, and one carriage's equilibrium and static
+characteristic."""
 
+from .blocks import ball_block_25 as ball_block_25
+from .blocks import majda2012_carriage as majda2012_carriage
+from .blocks import roller25_carriage as roller25_carriage
+from .blocks import roller_block_25 as roller_block_25
 from .carriage import Carriage as Carriage
 from .carriage import CarriageSpec as CarriageSpec
 from .carriage import carriage_from_spec as carriage_from_spec
 from .carriage import element_offsets as element_offsets
 from .carriage import four_row_carriage as four_row_carriage
-from .carriage import majda2012_carriage as majda2012_carriage
-from .carriage import roller25_carriage as roller25_carriage
 from .carriage import row_layout as row_layout
 from .rails import AbstractRailProfile as AbstractRailProfile
 from .rails import BumpRail as BumpRail

@@ -263,8 +263,8 @@ def four_row_carriage(
 
 class CarriageSpec(eqx.Module):
     """A four-row runner block, SI units: what :func:`carriage_from_spec` builds a
-    :class:`Carriage` from (the ``[carriage]`` section of a machine file; presets in
-    :mod:`diffguide.presets`).
+    :class:`Carriage` from (the ``[carriage]`` section of a machine file; two size-25 blocks
+    in :mod:`diffguide.guideway.blocks`).
 
     Arguments:
         law: ``"hertz"`` (balls, exact Hertz), ``"rivin"`` (balls, the paper's eq. 1) or
@@ -330,22 +330,3 @@ def carriage_from_spec(spec: CarriageSpec) -> Carriage:
         eps_ratio=spec.smoothing_fraction,
     )
 
-
-def majda2012_carriage(law: str = "hertz") -> Carriage:
-    """The paper's size-25 ball runner block (:func:`diffguide.presets.ball_block_25`).
-
-    Arguments:
-        law: ``"hertz"`` (full elliptic Hertz theory) or ``"rivin"`` (the paper's eq. 1).
-    """
-    from ..presets import ball_block_25
-
-    if law not in ("hertz", "rivin"):
-        raise ValueError(f"law must be one of ['hertz', 'rivin'], got {law!r}")
-    return carriage_from_spec(ball_block_25(law))
-
-
-def roller25_carriage() -> Carriage:
-    """A catalogue-typical size-25 roller block (:func:`diffguide.presets.roller_block_25`)."""
-    from ..presets import roller_block_25
-
-    return carriage_from_spec(roller_block_25())

@@ -16,6 +16,7 @@ from .kinematics import JointErrors as JointErrors
 from .kinematics import error_field as error_field
 from .kinematics import joint_errors as joint_errors
 from .majda2012 import majda2012_machine as majda2012_machine
+from .majda2012 import majda2012_spec as majda2012_spec
 from .majda2012 import majda2012_table as majda2012_table
 from .majda2012 import paper_variant as paper_variant
 from .spec import GuidewaySpec as GuidewaySpec

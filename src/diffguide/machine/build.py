@@ -17,8 +17,6 @@ model.
 """
 
 import dataclasses
-import warnings
-from collections.abc import Mapping
 
 import equinox as eqx
 import jax
@@ -144,9 +142,8 @@ def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
 
     Arguments:
         spec: a :class:`~diffguide.machine.spec.MachineSpec` (default
-            :func:`diffguide.presets.majda2012`). A configuration dictionary (diffguide 0.1,
-            user units) is still accepted, converted by :func:`diffguide.io.config.spec_from_config`
-            (deprecated).
+            :func:`~diffguide.machine.majda2012.majda2012_spec`); a machine file's configuration
+            (user units) becomes one with :func:`diffguide.io.config.spec_from_config`.
         overrides: ``thickness``, ``E``, ``preload_fraction``, ``carriage_spacing``, ``nx``,
             ``ny``, ``points``: shorthands for replacing those fields of ``spec``
             (:func:`with_overrides`; SI). ``thickness``, ``E``, ``preload_fraction`` and
@@ -159,19 +156,16 @@ def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
             docstring), valid while no footprint line passes another grid line (checked).
     """
     if spec is None:
-        from ..presets import majda2012
+        from .majda2012 import majda2012_spec  # builds on this module
 
-        spec = majda2012()
-    elif isinstance(spec, Mapping):
-        from ..io.config import spec_from_config  # the 0.1 path: a dict in user units
-
-        warnings.warn(
-            "build_machine(config_dict) is deprecated; pass a MachineSpec "
-            "(diffguide.io.config.spec_from_config(cfg) or diffguide.presets.majda2012())",
-            DeprecationWarning,
-            stacklevel=2,
+        spec = majda2012_spec()
+    elif not isinstance(spec, MachineSpec):
+        raise TypeError(
+            "build_machine: spec must be a MachineSpec, got "
+            f"{type(spec).__name__}; for a configuration dictionary pass "
+            "diffguide.io.config.spec_from_config(cfg), for the paper's machine "
+            "diffguide.presets.majda2012()"
         )
-        spec = spec_from_config(spec)
     spec = with_overrides(spec, **overrides)
     model = table_from_spec(spec)
     rail_y = spec.guideway.rail_y
@@ -198,17 +192,3 @@ def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
         screw_length_ref=s.free_length_at_ref,
     )
 
-
-def __getattr__(name: str):
-    """``carriage_from_config`` and ``table_from_config`` (diffguide 0.1) live in
-    :mod:`diffguide.io.config` now: a configuration is the io layer's business."""
-    if name in ("carriage_from_config", "table_from_config"):
-        from ..io import config
-
-        warnings.warn(
-            f"diffguide.build.{name} moved to diffguide.io.config.{name}",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return getattr(config, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

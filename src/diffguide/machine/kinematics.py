@@ -24,20 +24,9 @@ from .._core.rigid import transfer
 from .._core.types import Array, Float
 from ..guideway.rails import AbstractRailProfile
 from .equilibrium import Machine, _error_if_failed, equilibrium_traced, point_motion
-
-#: ISO 230-1 names of the six joint errors of the X axis, in the order of the last axis of
-#: :attr:`JointErrors.errors` (SI: m for the first three, rad for the last three; user units in
-#: :mod:`diffguide.io.units`).
-ERROR_NAMES = ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX")
-#: What each error is.
-ERROR_MEANINGS = (
-    "positioning",
-    "horizontal straightness",
-    "vertical straightness",
-    "roll",
-    "pitch",
-    "yaw",
-)
+from .errors import ERROR_MEANINGS as ERROR_MEANINGS  # names, meanings, units: one table
+from .errors import ERROR_NAMES as ERROR_NAMES
+from .errors import error_columns, to_user
 
 
 class JointErrors(eqx.Module):
@@ -68,9 +57,7 @@ class JointErrors(eqx.Module):
 
     def user_units(self) -> np.ndarray:
         """``errors`` in µm and µrad, as a NumPy array ``(n_pos, n_points, 6)``
-        (:func:`diffguide.io.units.to_user`)."""
-        from ..io.units import to_user  # user units live at the edge
-
+        (:func:`diffguide.machine.errors.to_user`)."""
         return to_user(self.errors)
 
     def to_dataframe(self):
@@ -89,8 +76,8 @@ class JointErrors(eqx.Module):
             "x_mm": np.tile(xy[:, 0], n_pos),
             "y_mm": np.tile(xy[:, 1], n_pos),
         }
-        for k, name in enumerate(ERROR_NAMES):
-            data[f"{name}_{'um' if k < 3 else 'urad'}"] = errs[:, :, k].reshape(-1)
+        for k, column in enumerate(error_columns()):
+            data[column] = errs[:, :, k].reshape(-1)
         data["converged"] = np.repeat(np.broadcast_to(np.asarray(self.converged), (n_pos,)), n_pt)
         return pd.DataFrame(data)
 

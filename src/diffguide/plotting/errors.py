@@ -3,7 +3,7 @@
 import matplotlib
 import numpy as np
 
-from ..io.units import ERROR_LABELS
+from ..machine.errors import ERROR_LABELS
 from . import axes_grid
 
 

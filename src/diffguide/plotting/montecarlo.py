@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ..io.units import ERROR_LABELS as _LABELS
+from ..machine.errors import ERROR_LABELS as _LABELS
 from . import axes_grid
 
 

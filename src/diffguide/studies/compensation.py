@@ -20,8 +20,8 @@ compensates by moving by their negatives.
 import numpy as np
 
 from .._core.rigid import transfer
-from ..io.units import ERROR_UNITS as _UNITS
-from ..io.units import error_columns
+from ..machine.errors import ERROR_UNITS as _UNITS
+from ..machine.errors import error_columns
 from ..machine.kinematics import ERROR_NAMES
 
 

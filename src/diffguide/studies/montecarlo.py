@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.precision import require_x64
-from ..io.units import ERRORS
+from ..machine.errors import ERRORS
 from ..machine.equilibrium import Machine
 from ..machine.kinematics import ERROR_NAMES, joint_errors
 from .random_rails import RailBatch, rails_from_coefficients

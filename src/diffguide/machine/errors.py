@@ -1,16 +1,27 @@
-"""User units at the edge: the one table of the six joint errors' units.
+"""The six joint errors of the X axis (ISO 230-1): names, meanings and units, one table.
 
-Inside, joint errors are SI (m for EXX, EYX, EZX; rad for EAX, EBX, ECX; names and meanings in
-:data:`diffguide.machine.kinematics.ERROR_NAMES` / ``ERROR_MEANINGS``). Files, plots and the CLI
-show them in µm and µrad (= µm/m); file columns carry the unit in ASCII (``EXX_um``,
-``EAX_urad``), plots in Unicode (``µm``, ``µrad``).
+Inside, joint errors are SI: m for EXX, EYX, EZX; rad for EAX, EBX, ECX, in the order of
+:data:`ERROR_NAMES` (the last axis of :attr:`~diffguide.machine.kinematics.JointErrors.errors`).
+Files, plots and the CLI show them in µm and µrad (= µm/m); file columns carry the unit in ASCII
+(``EXX_um``, ``EAX_urad``), plots in Unicode (``µm``, ``µrad``).
 """
 
 from typing import NamedTuple
 
 import numpy as np
 
-from ..machine.kinematics import ERROR_MEANINGS, ERROR_NAMES
+#: ISO 230-1 names of the six joint errors of the X axis, in the order of the last axis of
+#: ``JointErrors.errors`` (SI: m for the first three, rad for the last three).
+ERROR_NAMES = ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX")
+#: What each error is.
+ERROR_MEANINGS = (
+    "positioning",
+    "horizontal straightness",
+    "vertical straightness",
+    "roll",
+    "pitch",
+    "yaw",
+)
 
 
 class ErrorUnit(NamedTuple):
