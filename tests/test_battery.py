@@ -273,8 +273,8 @@ def test_structure_sensitivity_matches_refitting(monkeypatch):
     shape — each profile's change within 10 % RMS (measured 1–5 %: the secant follows the rails'
     curvature in ``q``). The Gauss–Newton tangent ``−H⁻¹J_cᵀJ_q`` used before had the
     thickness column a third of this."""
-    from diffguide.inverse import problem as problemmod
     from diffguide.inverse import fit_rails
+    from diffguide.inverse import problem as problemmod
 
     res = result("with_straightness")
     fit = res.fit
