@@ -273,16 +273,16 @@ def test_structure_sensitivity_matches_refitting(monkeypatch):
     shape — each profile's change within 10 % RMS (measured 1–5 %: the secant follows the rails'
     curvature in ``q``). The Gauss–Newton tangent ``−H⁻¹J_cᵀJ_q`` used before had the
     thickness column a third of this."""
-    from diffguide.inverse import fit as fitmod
     from diffguide.inverse import fit_rails
+    from diffguide.inverse import problem as problemmod
 
     res = result("with_straightness")
     fit = res.fit
     meas = cases.measurements(res.case)
     points = dict(zip(meas.point_names, map(tuple, np.asarray(meas.points_xy, float))))
     family = cases.fit_machine(points)
-    fixed = fitmod.fixed_weight  # refits with the fit's λ *and* its prior shape κ
-    monkeypatch.setattr(fitmod, "fixed_weight", lambda *a, **k: dataclasses.replace(
+    fixed = problemmod.fixed_weight  # refits with the fit's λ *and* its prior shape κ
+    monkeypatch.setattr(problemmod, "fixed_weight", lambda *a, **k: dataclasses.replace(
         fixed(*a, **k), kappa=fit.weight.kappa))
     prior_sigma = family.prior_sigma()
     q = np.array([np.log(v["value"] / v["prior_value"]) for v in fit.structure.values()])
@@ -423,17 +423,17 @@ def test_the_structure_estimate_is_the_minimum_of_its_objective(monkeypatch):
     truth, and called it converged."""
     import dataclasses
 
-    import diffguide.inverse.fit as fit_module
+    import diffguide.inverse.structure_stage as stage_module
 
     calls = []
-    search = fit_module.maximise_marginal
+    search = stage_module.maximise_marginal
 
     def recording(score, q0, bounds, **kw):
         q, cov, info = search(score, q0, bounds, **kw)
         calls.append((score, q, cov, bounds))
         return q, cov, info
 
-    monkeypatch.setattr(fit_module, "maximise_marginal", recording)
+    monkeypatch.setattr(stage_module, "maximise_marginal", recording)
     case = dataclasses.replace(cases.planned(CASES["thickness_30mm"]()), seed=2)
     res = cases.run_case(case)
     assert res.fit is not None, res.error

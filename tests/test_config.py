@@ -181,9 +181,7 @@ def test_every_command_has_help_with_units(capsys):
 def test_fit_section_sets_the_structural_priors(tmp_path):
     """``[fit]`` priors reach the fit; a flag overrides the file; without either, the machine's
     own values with the documented ranges."""
-    import argparse
-
-    from diffguide.cli.fit import fit_settings, structure_priors
+    from diffguide.inverse.settings import fit_modes, structure_priors
 
     path = tmp_path / "m.toml"
     path.write_text(
@@ -192,41 +190,33 @@ def test_fit_section_sets_the_structural_priors(tmp_path):
     )
     cfg = load_config(path)
     assert "thickness_prior_mm = [45.0, 30.0, 90.0]" in dump_config(cfg)
-    args = argparse.Namespace(structure=None, criterion=None, thickness_prior_mm=None,
-                              preload_prior=None)
-    pri = structure_priors(args, cfg)
+    pri = structure_priors(cfg)
     assert (pri.thickness.value, pri.thickness.lo, pri.thickness.hi) == pytest.approx(
         (0.045, 0.030, 0.090))
     p0 = cfg["carriage"]["preload_fraction"]  # not in the file: the machine's, [1/4, 2]x
     assert (pri.preload.value, pri.preload.lo, pri.preload.hi) == pytest.approx(
         (p0, p0 / 4, 2 * p0))
-    assert fit_settings(args, cfg) == ("estimate", "gcv")
-    args.thickness_prior_mm, args.criterion = "50,40,70", "ml"
-    pri = structure_priors(args, cfg)
+    assert fit_modes(cfg) == ("estimate", "gcv")
+    pri = structure_priors(cfg, thickness_prior_mm="50,40,70")
     assert (pri.thickness.value, pri.thickness.lo, pri.thickness.hi) == pytest.approx(
         (0.050, 0.040, 0.070))
-    assert fit_settings(args, cfg) == ("estimate", "ml")
+    assert fit_modes(cfg, criterion="ml") == ("estimate", "ml")
     path.write_text('[fit]\nstructure = "fixed"\n')
-    assert structure_priors(argparse.Namespace(
-        structure=None, criterion=None, thickness_prior_mm=None, preload_prior=None),
-        load_config(path)).active() == ()
+    assert structure_priors(load_config(path)).active() == ()
 
 
 def test_fit_section_rigid_switch(tmp_path):
     """``[fit] rigid = true`` asks for the rigid-table inversion; ``--rigid``/``--no-rigid``
     override it; the dumped file reads back the same (TOML booleans)."""
-    import argparse
-
-    from diffguide.cli.fit import rigid_wanted
+    from diffguide.inverse.settings import rigid_wanted
 
     path = tmp_path / "m.toml"
     path.write_text("[fit]\nrigid = true\n")
     cfg = load_config(path)
     assert cfg["fit"]["rigid"] is True
-    assert rigid_wanted(argparse.Namespace(rigid=None), cfg)
-    assert not rigid_wanted(argparse.Namespace(rigid=False), cfg)
-    assert not rigid_wanted(argparse.Namespace(rigid=None), load_config(tmp_path / "m.toml")
-                            | {"fit": {"rigid": False}})
+    assert rigid_wanted(cfg, None)
+    assert not rigid_wanted(cfg, False)
+    assert not rigid_wanted(load_config(tmp_path / "m.toml") | {"fit": {"rigid": False}})
     again = tmp_path / "again.toml"
     again.write_text(dump_config(cfg))
     assert "rigid = true" in again.read_text()

@@ -17,7 +17,8 @@ from diffguide.inverse import (
     fit_rails,
     identifiability,
 )
-from diffguide.inverse import fit as fitmod
+from diffguide.inverse import model as modelmod
+from diffguide.inverse import problem as problemmod
 from diffguide.inverse.data import Measurements
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -153,17 +154,17 @@ def test_jacobian_matches_finite_differences(case):
     """The linearisation's Jacobian (rails, structure, lead) against central differences."""
     _, machine, meas, fit = case
     fam = _family(machine, meas)
-    lead_B, _ = fitmod._lead_basis(meas)
-    prob = fitmod._problem(fam, meas, fit.basis, lead_B, 0.0)
+    lead_B, _ = problemmod._lead_basis(meas)
+    prob = problemmod._problem(fam, meas, fit.basis, lead_B, 0.0)
     v0 = np.concatenate([fit.coeffs.reshape(-1) * 1e6, [0.1, -0.2]])
-    _, J, _, _ = fitmod._linearise(jnp.asarray(v0), prob)
+    _, J, _, _ = modelmod._linearise(jnp.asarray(v0), prob)
     rng = np.random.default_rng(0)
     for v in (np.concatenate([rng.standard_normal(v0.size - 2) * 0.3, [0, 0]]),
               np.concatenate([np.zeros(v0.size - 2), [0.3, 0.0]]),
               np.concatenate([np.zeros(v0.size - 2), [0.0, 0.3]])):
         h = 1e-3
-        rp = np.asarray(fitmod._linearise(jnp.asarray(v0 + h * v), prob)[0])
-        rm = np.asarray(fitmod._linearise(jnp.asarray(v0 - h * v), prob)[0])
+        rp = np.asarray(modelmod._linearise(jnp.asarray(v0 + h * v), prob)[0])
+        rm = np.asarray(modelmod._linearise(jnp.asarray(v0 - h * v), prob)[0])
         fd = (rp - rm) / (2 * h)
         assert np.asarray(J) @ v == pytest.approx(fd, rel=1e-4, abs=1e-6 * np.abs(fd).max())
 

@@ -15,7 +15,6 @@ from .._core.atomic import usual_mode
 from ._common import check_tolerances, say
 
 PRESETS = ("majda2012",)
-_S_STEP_MM = 2.0
 #: Exit code when the results are written but the elastic fit did not converge.
 EXIT_NOT_CONVERGED = 3
 
@@ -172,167 +171,32 @@ def read_truth(path, s_m):
     return rails_at(path, s_m)
 
 
-def _rails_csv(s_m, val, sig) -> str:
-    lines = ["rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um"]
-    for r in range(2):
-        for i, s in enumerate(s_m):
-            lines.append(f"{r + 1},{s * 1e3:.3f},{val[r, 0, i] * 1e6:.5f},"
-                         f"{sig[r, 0, i] * 1e6:.5f},{val[r, 1, i] * 1e6:.5f},"
-                         f"{sig[r, 1, i] * 1e6:.5f}")
-    return "\n".join(lines) + "\n"
+def _settings(args, cfg):
+    """The fit's settings (:mod:`diffguide.inverse.settings`): ``(structure, criterion,
+    waviness (m), rigid)`` from the flags, else the configuration's ``[fit]`` section."""
+    from ..inverse import settings
 
-
-def _fit_csv(meas, fits) -> str:
-    from ..io.measurements import ANGULAR_UNITS, LINEAR_UNITS, format_csv
-
-    cols = ["line", "position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit", "run",
-            "direction", "instrument", "status"]
-    for label in fits:
-        cols += [f"fitted{label}", f"residual{label}"]
-    outlier_rows = set(int(i) for i in fits[""].outliers)
-    rows = []
-    for r, k in zip(meas.readings, meas.row_of_reading):
-        f = {**LINEAR_UNITS, **ANGULAR_UNITS}[r.unit]
-        status = ("outlier reading (not used)" if k < 0 else
-                  "outlier value (zero weight)" if int(k) in outlier_rows else "used")
-        row = {"line": r.line, "position_mm": float(r.position * 1e3), "point": r.point,
-               "x_mm": float(r.xy[0] * 1e3), "y_mm": float(r.xy[1] * 1e3),
-               "quantity": r.quantity, "value": float(r.value / f), "unit": r.unit,
-               "run": r.run, "direction": r.direction, "instrument": r.instrument,
-               "status": status}
-        for label, fit in fits.items():
-            row[f"fitted{label}"] = "" if k < 0 else float(fit.fitted[k] / f)
-            row[f"residual{label}"] = "" if k < 0 else float((r.value - fit.fitted[k]) / f)
-        rows.append(row)
-    return format_csv(rows, tuple(cols))
-
-
-def _summary(fit, meas, seconds) -> dict:
-    from ..io.measurements import QUANTITIES
-
-    chan = meas.channel_index()
-    channels = []
-    for c in range(len(meas.channels)):
-        sel = chan == c
-        p, q, inst = meas.channels[c]
-        used = sel & ~np.isin(np.arange(meas.n), fit.outliers)
-        z = fit.residual[used] / meas.sigma[used]
-        channels.append({
-            "channel": meas.channel_label(c), "point": meas.point_names[p],
-            "quantity": QUANTITIES[q], "instrument": inst,
-            "rms_residual_user": float(np.sqrt(np.mean(fit.residual[sel] ** 2)) * 1e6),
-            "chi2": float(z @ z), "n": int(sel.sum()),
-            "zero_offset_user": (None if not np.isfinite(fit.offsets[c])
-                                 else float(fit.offsets[c] * 1e6)),
-        })
-    structure = {}
-    for name, v in fit.structure.items():
-        unit, f = ("mm", 1e3) if name == "thickness" else ("fraction of C", 1.0)
-        structure[name] = {
-            "unit": unit, "value": v["value"] * f, "sigma": v["sigma"] * f,
-            "prior_value": v["prior_value"] * f,
-            "prior_range": [x * f for x in v["prior_range"]],
-            "determined_by_data": v["determined"], "at_interpolation_bound": v["at_bound"],
-            "note": ("determined by the data" if v["determined"] else
-                     "not determined by the data: the value is the prior's and its "
-                     "uncertainty widens the rails' bands"),
-        }
-    return {
-        "model": "rigid table" if fit.rigid else "elastic table",
-        "method": ("classical linear inversion (rigid-body model linearised at straight "
-                   "rails, same gauge, penalty and weight choice)" if fit.rigid else
-                   "Levenberg-Marquardt through the elastic model"),
-        "converged": bool(fit.converged), "status": fit.message, "lm_steps": int(fit.steps),
-        "lambda": fit.lam, "lambda_criterion": fit.weight.criterion,
-        "lambda_score": None if not np.isfinite(fit.weight.score) else fit.weight.score,
-        "lambda_at_search_bound": bool(fit.weight.at_bound),
-        "chi2": fit.chi2, "dof": fit.dof,
-        "chi2_per_dof": None if not np.isfinite(fit.chi2_dof) else fit.chi2_dof,
-        "sigma_scale": fit.sigma_scale, "effective_parameters": fit.edf,
-        "resolution": {
-            "knot_spacing_mm": fit.basis.spacing * 1e3,
-            "rail_waviness_um": fit.waviness * 1e6,
-            "note": (f"content shorter than about {2 * fit.basis.spacing * 1e3:.0f} mm (two knot "
-                     "spacings) is not resolved; "
-                     + (f"a stated waviness of {fit.waviness * 1e6:.3g} µm RMS is in every σ"
-                        if fit.waviness > 0 else
-                        "the bands do not include it (state --rail-waviness-um)")),
-        },
-        "structure": structure,
-        "outlier_rows": [{"position_mm": float(meas.position[i] * 1e3),
-                          "channel": meas.channel_label(int(chan[i])),
-                          "residual_user": float(fit.residual[i] * 1e6)}
-                         for i in fit.outliers],
-        "lead_error_term": bool(len(fit.lead)),
-        "alignment_slopes_um_per_m": {meas.channel_label(c): float(a * 1e6) for c, a in
-                                      zip(fit.alignment_channels, fit.alignment)},
-        "knot_spacing_mm": fit.basis.spacing * 1e3, "coefficients_per_profile": fit.basis.n_coeffs,
-        "s_range_mm": [fit.basis.start * 1e3, fit.basis.end * 1e3],
-        "gauge": list(fit.gauge), "channels": channels, "fit_seconds": seconds,
-        "units": "user units: µm for EXX/EYX/EZX, µm/m (µrad) for EAX/EBX/ECX",
-    }
-
-
-def _parse_prior(text, flag, scale):
-    try:
-        v = [float(t) for t in text.split(",")]
-        if len(v) != 3:
-            raise ValueError
-    except ValueError:
-        raise ValueError(f"{flag} must be VALUE,LO,HI (three numbers), got {text!r}") from None
-    if not (0 < v[1] <= v[0] <= v[2]) or not all(np.isfinite(v)):
-        raise ValueError(f"{flag} needs 0 < LO <= VALUE <= HI, got {text!r}")
-    return [x * scale for x in v]
-
-
-def fit_settings(args, cfg) -> tuple[str, str]:
-    """``(structure, criterion)``: the flags, else the configuration's ``[fit]`` section."""
-    fit = cfg.get("fit", {})
-    structure = args.structure or fit.get("structure") or "estimate"
-    criterion = args.criterion or fit.get("criterion") or "ml"
-    return structure, criterion
-
-
-def rail_waviness(args, cfg) -> float:
-    """The stated short-wave rail waviness (m RMS): ``--rail-waviness-um``, else the
-    configuration's ``[fit] rail_waviness_um``, else 0."""
-    um = args.rail_waviness_um
-    if um is None:
-        um = cfg.get("fit", {}).get("rail_waviness_um", 0.0)
-    return float(um) * 1e-6
-
-
-def rigid_wanted(args, cfg) -> bool:
-    """Whether to run the rigid-table inversion too: ``--rigid`` / ``--no-rigid``, else the
-    configuration's ``[fit] rigid``, else no (it costs a compilation of its own)."""
-    if args.rigid is not None:
-        return bool(args.rigid)
-    return bool(cfg.get("fit", {}).get("rigid", False))
+    structure, criterion = settings.fit_modes(cfg, args.structure, args.criterion)
+    return (structure, criterion, settings.rail_waviness(cfg, args.rail_waviness_um),
+            settings.rigid_wanted(cfg, args.rigid))
 
 
 def structure_priors(args, cfg):
-    """The structural priors: the flags, else the configuration's ``[fit]`` section, else the
-    machine's own values with the ranges [1/2, 2]× (thickness) and [1/4, 2]× (preload)."""
-    from ..inverse import Prior, StructurePriors
+    """The structural priors of the flags ``--structure``, ``--thickness-prior-mm``,
+    ``--preload-prior`` and the configuration (:func:`diffguide.inverse.settings.
+    structure_priors`)."""
+    from ..inverse.settings import structure_priors as priors
 
-    if fit_settings(args, cfg)[0] == "fixed":
-        return StructurePriors()
-    fit = cfg.get("fit", {})
-    t0 = cfg["table"]["thickness_mm"] * 1e-3
-    p0 = cfg["carriage"]["preload_fraction"]
-    if args.thickness_prior_mm:
-        t = _parse_prior(args.thickness_prior_mm, "--thickness-prior-mm", 1e-3)
-    elif fit.get("thickness_prior_mm") is not None:
-        t = [v * 1e-3 for v in fit["thickness_prior_mm"]]
-    else:
-        t = (t0, 0.5 * t0, 2.0 * t0)
-    if args.preload_prior:
-        p = _parse_prior(args.preload_prior, "--preload-prior", 1.0)
-    elif fit.get("preload_prior") is not None:
-        p = list(fit["preload_prior"])
-    else:
-        p = (p0, 0.25 * p0, 2.0 * p0)
-    return StructurePriors(Prior(*t), Prior(*p))
+    return priors(cfg, structure=args.structure, thickness_prior_mm=args.thickness_prior_mm,
+                  preload_prior=args.preload_prior)
+
+
+def _jsonable(obj):
+    """Plain JSON types (:func:`diffguide.io.fit_report.jsonable`; imported when called, so
+    that ``--help`` does not load the library)."""
+    from ..io.fit_report import jsonable
+
+    return jsonable(obj)
 
 
 def _check_out(out: Path) -> Path:
@@ -391,19 +255,46 @@ def _write_dir(out: Path, files: dict[str, object]) -> None:
 
 
 def run(args) -> int:
-    from ..inverse import MachineFamily, fit_rails
+    from ..inverse import MachineFamily
     from ..io.config import spec_from_config
-    from ..io.importers import read_any
+    from ..io.fit_files import profile_grid
     from ..machine.build import build_machine
-    from ..plotting.render import FigureWorker
     from ._common import machine_config
 
     t_start = time.perf_counter()
     _check_out(Path(args.out))
     cfg = machine_config(args)
     spec = spec_from_config(cfg)
-    notes: list[str] = []
     info: dict = {}
+    meas, priors = _read(args, cfg, info)
+    points = {n: tuple(map(float, xy)) for n, xy in zip(meas.point_names, meas.points_xy)}
+
+    def make_machine(**kw):
+        return build_machine(spec, nx=args.nx, ny=args.ny, points=points, **kw)
+
+    family = MachineFamily.build(make_machine, priors, progress=lambda t: say(args, t))
+    fits, seconds = _fit_all(args, cfg, family, meas)
+    elastic = fits[""]
+    s_m = profile_grid(elastic.basis)
+    profiles = {label: f.profiles(s_m) for label, f in fits.items()}
+    truth = None
+    if args.truth:
+        raw = read_truth(args.truth, s_m)
+        flat = elastic.basis.gauge_fix(s_m, raw.reshape(4, -1), elastic.fix_slope)
+        truth = flat.reshape(2, 2, -1)
+    report, written = _write_outputs(args, meas, fits, profiles, s_m, truth, seconds,
+                                     family.base, t_start)
+    if args.export_compensation:
+        _export_compensation(args, cfg, spec, points, elastic, info.get("x0_mm", 0.0))
+    _say_results(args, report, fits, written, t_start)
+    return 0 if elastic.converged else EXIT_NOT_CONVERGED
+
+
+def _read(args, cfg, info: dict):
+    """The measurements (checked against the machine) and the structural priors."""
+    from ..io.importers import read_any
+
+    notes: list[str] = []
     meas = read_any(args.measurements, args.layout, args.x0_mm, notes, info)
     for n in notes:
         say(args, f"note: {n}")
@@ -414,63 +305,69 @@ def run(args) -> int:
                f"{len(meas.channels)} channels at {len(np.unique(meas.position))} positions"
                + (f"; {len(meas.rejected)} outlying readings set aside (lines {lines})"
                   if meas.rejected else ""))
-    points = {n: tuple(map(float, xy)) for n, xy in zip(meas.point_names, meas.points_xy)}
+    return meas, priors
 
-    def make_machine(**kw):
-        return build_machine(spec, nx=args.nx, ny=args.ny, points=points, **kw)
 
-    family = MachineFamily.build(make_machine, priors, progress=lambda t: say(args, t))
-    machine = family.base
+def _fit_all(args, cfg, family, meas):
+    """The elastic fit, and the rigid-table inversion when asked for: ``({label: RailFit},
+    {label: seconds})``, each summarised on the console."""
+    from ..inverse import fit_rails
+
+    _, criterion, waviness, rigid = _settings(args, cfg)
     spacing = None if args.knot_spacing_mm is None else args.knot_spacing_mm * 1e-3
     fits, seconds = {}, {}
-    rigid = [("_rigid", machine.with_rigid_table())] if rigid_wanted(args, cfg) else []
-    models = [("", family)] + rigid
+    models = [("", family)] + ([("_rigid", family.base.with_rigid_table())] if rigid else [])
     for label, m in models:
         t = time.perf_counter()
         say(args, f"{'rigid-table' if label else 'elastic'} fit: compiling and solving ...")
         fits[label] = fit_rails(m, meas, knot_spacing=spacing, lam=args.lam,
-                                criterion=fit_settings(args, cfg)[1], max_steps=args.max_steps,
-                                waviness=rail_waviness(args, cfg),
-                                method="linear" if label else "lm")
+                                criterion=criterion, max_steps=args.max_steps,
+                                waviness=waviness, method="linear" if label else "lm")
         seconds[label] = time.perf_counter() - t
-        f = fits[label]
-        say(args, f"{'rigid-table' if label else 'elastic'} fit: chi2/dof = {f.chi2_dof:.3f} "
-                   f"(dof {f.dof:.1f}), lambda {f.lam:.3g} ({f.weight.criterion}), "
-                   f"{f.edf:.1f} effective parameters, {f.steps} LM steps, {f.message}, "
-                   f"{seconds[label]:.1f} s")
-        for name, v in f.structure.items():
-            val, sd = ((v["value"] * 1e3, v["sigma"] * 1e3) if name == "thickness"
-                       else (v["value"] * 100, v["sigma"] * 100))
-            unit = "mm" if name == "thickness" else "% of C"
-            say(args, f"  {name}: {val:.3g} ± {sd:.2g} {unit}"
-                       + ("" if v["determined"] else " (not determined by the data: prior)"))
-        for c, a in zip(f.alignment_channels, f.alignment):
-            say(args, f"  alignment slope of {meas.channel_label(c)}: {a * 1e6:.3g} µm/m "
-                       "(fitted, as ISO 230-1 removes it)")
-    elastic = fits[""]
-    basis = elastic.basis
-    s0 = np.ceil(basis.start * 1e3 / _S_STEP_MM - 1e-9) * _S_STEP_MM
-    s_m = np.arange(s0, basis.end * 1e3 + 1e-9, _S_STEP_MM) * 1e-3
-    s_m = np.unique(np.clip(np.concatenate([[basis.start], s_m, [basis.end]]), basis.start,
-                            basis.end))
-    profiles = {label: f.profiles(s_m) for label, f in fits.items()}
-    truth = None
-    if args.truth:
-        raw = read_truth(args.truth, s_m)
-        flat = basis.gauge_fix(s_m, raw.reshape(4, -1), elastic.fix_slope)
-        truth = flat.reshape(2, 2, -1)
+        _say_fit(args, label, fits[label], meas, seconds[label])
+    return fits, seconds
+
+
+def _say_fit(args, label, f, meas, seconds) -> None:
+    say(args, f"{'rigid-table' if label else 'elastic'} fit: chi2/dof = {f.chi2_dof:.3f} "
+               f"(dof {f.dof:.1f}), lambda {f.lam:.3g} ({f.weight.criterion}), "
+               f"{f.edf:.1f} effective parameters, {f.steps} LM steps, {f.message}, "
+               f"{seconds:.1f} s")
+    for name, v in f.structure.items():
+        val, sd = ((v["value"] * 1e3, v["sigma"] * 1e3) if name == "thickness"
+                   else (v["value"] * 100, v["sigma"] * 100))
+        unit = "mm" if name == "thickness" else "% of C"
+        say(args, f"  {name}: {val:.3g} ± {sd:.2g} {unit}"
+                   + ("" if v["determined"] else " (not determined by the data: prior)"))
+    for c, a in zip(f.alignment_channels, f.alignment):
+        say(args, f"  alignment slope of {meas.channel_label(c)}: {a * 1e6:.3g} µm/m "
+                   "(fitted, as ISO 230-1 removes it)")
+
+
+def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_start):
+    """The output folder, staged and renamed into place (figures drawn by the figures'
+    process meanwhile): ``(report, names of the files written)``."""
+    from ..io.fit_files import fit_csv_text, layout_csv_text, rails_csv_text
+    from ..io.fit_report import fit_report
+    from ..plotting.render import FigureWorker
+
     with _Staging(Path(args.out)) as staged:
         figures = getattr(args, "figures", None) or FigureWorker()
         plots = {} if args.no_plots else _figures(meas, fits, profiles, s_m, truth)
         try:
             if plots:  # drawn by the figures' process while the rest is computed
                 figures.submit(staged.tmp, list(plots.items()), dpi=110)
-            report = _report(args, meas, fits, profiles, truth, seconds, machine)
-            files = {"rails.csv": _rails_csv(s_m, *profiles[""])}
+            elastic = fits[""]
+            report = fit_report(
+                meas, fits, profiles, seconds, machine, truth=truth, truth_file=args.truth,
+                source={"preset": None if args.config else args.preset, "config": args.config,
+                        "measurements": args.measurements},
+                exit_code=0 if elastic.converged else EXIT_NOT_CONVERGED)
+            files = {"rails.csv": rails_csv_text(s_m, *profiles[""])}
             if "_rigid" in fits:
-                files["rails_rigid.csv"] = _rails_csv(s_m, *profiles["_rigid"])
-            files["fit.csv"] = _fit_csv(meas, fits)
-            files["layout.csv"] = layout_csv(meas)
+                files["rails_rigid.csv"] = rails_csv_text(s_m, *profiles["_rigid"])
+            files["fit.csv"] = fit_csv_text(meas, fits)
+            files["layout.csv"] = layout_csv_text(meas)
             report["total_seconds"] = time.perf_counter() - t_start
             files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
             staged.write(files)
@@ -479,9 +376,15 @@ def run(args) -> int:
             figures.close(kill=True)  # stop drawing into the staging folder before it goes
             raise
         staged.commit()
-    files.update(plots)
-    if args.export_compensation:
-        _export_compensation(args, cfg, points, elastic, family, info.get("x0_mm", 0.0))
+    return report, [*files, *plots]
+
+
+def _say_results(args, report, fits, written, t_start) -> None:
+    """The console's closing lines: truth scores, what the data do not determine (and the
+    planner's command for it), the files, a warning when the fit did not converge."""
+    from ..io.fit_report import undetermined_lines
+
+    elastic = fits[""]
     if args.truth:
         e = report["truth"]["rms_error_um"]
         say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
@@ -498,122 +401,36 @@ def run(args) -> int:
         plan += ["--start", str(Path(args.out) / "layout.csv")]
         say(args, "what more instruments would determine there: diffguide plan "
                   f"{shlex.join(plan)} --out PLAN_DIR")
-    say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
+    say(args, f"wrote {args.out}/ ({', '.join(written)}) in {time.perf_counter() - t_start:.1f} s")
     if not elastic.converged:
         print(f"diffguide fit: warning: the fit did not converge ({elastic.message}); the results "
               f"in {args.out}/ are the best estimate so far and are flagged in report.json",
               file=sys.stderr)
     sys.stdout.flush()
-    return 0 if elastic.converged else EXIT_NOT_CONVERGED
 
 
-def layout_csv(meas) -> str:
-    """The measured layout in ``diffguide plan``'s plan format (``--start``/``--compare``):
-    ``instrument,point,x_mm,y_mm,reads`` — one row per point and instrument kind (``level``,
-    ``interferometer`` for angular optics, ``straightness`` for straightness optics; what the
-    planner does not model — positioning, an interferometer reading roll — is left out),
-    ``reads`` the quantities read there, ``+``-joined."""
-    from ..inverse.data import QUANTITIES
-    from ..inverse.plan import KINDS
-    from ..io.measurements import format_csv
+def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> None:
+    """``--export-compensation``: the fitted model's errors at ``--at`` over the stroke in
+    ``--format`` (:func:`diffguide.studies.compensation.fitted_compensation`), written next
+    to each other, and a warning per point where a rigid-body compensation would not hold."""
+    from ..io.atomic import atomic_write_text
+    from ..studies.compensation import fitted_compensation, fitted_machine
 
-    reads: dict[tuple[int, str], list[str]] = {}
-    for p, q, inst in meas.channels:
-        quantity = QUANTITIES[q]
-        # a level is a level; an interferometer's optics are the planner's angular
-        # interferometer or its straightness optics, by what they read
-        kinds = ("level",) if inst == "level" else ("interferometer", "straightness")
-        kind = next((k for k in kinds if quantity in KINDS[k]), None)
-        if kind is not None and quantity not in reads.setdefault((p, kind), []):
-            reads[(p, kind)].append(quantity)
-    rows = [{"instrument": kind, "point": meas.point_names[p],
-             "x_mm": float(meas.points_xy[p][0] * 1e3), "y_mm": float(meas.points_xy[p][1] * 1e3),
-             "reads": "+".join(qs)} for (p, kind), qs in sorted(reads.items())]
-    return format_csv(rows, ("instrument", "point", "x_mm", "y_mm", "reads"))
-
-
-def undetermined_lines(ident: dict, waviness: float) -> list[str]:
-    """What the data do not determine, for the console: per combination of the two rails, the
-    wavelength bands (mm) whose transfer is below the report's threshold — there the profiles
-    are the prior's guess and their σ the prior's — and, when no waviness (m RMS) is stated,
-    that content shorter than the shortest analysed wavelength is outside the σ bands."""
-    bands = []
-    for c in ident["wavelengths"]:
-        if c["undetermined_wavelengths_mm"]:
-            spans = ", ".join(f"{lo:.0f}–{hi:.0f}" for lo, hi in c["undetermined_wavelengths_mm"])
-            bands.append(f"{c['combination'].split(' (')[0]} {spans}")
-    lines = []
-    if bands:
-        lines.append("not determined by the data (there the σ bands are the prior's), "
-                     "wavelengths in mm: " + "; ".join(bands))
-    if waviness == 0.0:
-        shortest = min((r["wavelength_mm"] for c in ident["wavelengths"] for r in c["transfer"]),
-                       default=None)
-        if shortest is not None:
-            lines.append(f"rail content shorter than {shortest:.0f} mm (two knot spacings: the "
-                         "profiles cannot hold it and the carriages average it out) is not in the "
-                         "σ bands: state its RMS with --rail-waviness-um")
-    return lines
-
-
-def _report(args, meas, fits, profiles, truth, seconds, machine) -> dict:
-    """report.json's content (without ``total_seconds``)."""
-    from ..inverse import identifiability
-    from ..studies.iso230_2 import channel_figures
-
-    elastic = fits[""]
-    report = {
-        "command": "diffguide fit", "preset": None if args.config else args.preset,
-        "config": args.config,
-        "status": {"converged": bool(elastic.converged), "message": elastic.message,
-                   "exit_code": 0 if elastic.converged else EXIT_NOT_CONVERGED},
-        "measurements": {
-            "file": str(args.measurements), "readings": len(meas.readings),
-            "merged_rows": meas.n,
-            "points": {n: [float(x * 1e3), float(y * 1e3)] for n, (x, y) in
-                       zip(meas.point_names, meas.points_xy)},
-            "sigma_sources": sorted(set(meas.sigma_source)),
-            "rejected_reading_lines": list(meas.rejected),
-        },
-        "iso230_2": channel_figures(meas),  # per channel where the runs allow
-        "elastic": _summary(elastic, meas, seconds[""]),
-        "identifiability": identifiability(elastic, machine),
-    }
-    if "_rigid" in fits:
-        report["rigid_table"] = _summary(fits["_rigid"], meas, seconds["_rigid"])
-        dv = profiles[""][0] - profiles["_rigid"][0]
-        report["elastic_vs_rigid_profile_rms_difference_um"] = {
-            f"rail {r + 1} {pl}": float(np.sqrt(np.mean(dv[r, p] ** 2)) * 1e6)
-            for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))}
-    if args.truth:
-        report["truth"] = {"file": str(args.truth), "rms_error_um": {}, "coverage_2sigma": {}}
-        for label, (val, sig) in profiles.items():
-            name = "rigid_table" if label else "elastic"
-            err = val - truth
-            report["truth"]["rms_error_um"][name] = {
-                f"rail {r + 1} {pl}": float(np.sqrt(np.mean(err[r, p] ** 2)) * 1e6)
-                for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))}
-            report["truth"]["rms_error_um"][name]["all"] = float(np.sqrt(np.mean(err**2)) * 1e6)
-            report["truth"]["coverage_2sigma"][name] = float(np.mean(np.abs(err) <= 2 * sig))
-        report["truth"]["rms_truth_um"] = float(np.sqrt(np.mean(truth**2)) * 1e6)
-    return report
-
-
-def _jsonable(obj):
-    """Plain JSON types; non-finite numbers become null (never NaN in the file)."""
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if np.isfinite(obj) else None
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    return obj
+    points = {k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()}
+    points.update(measured_points)  # --at and the counts were checked before the fit
+    machine = fitted_machine(spec, fit, points=points, nx=args.nx, ny=args.ny)
+    half = cfg["machine"]["stroke_mm"] / 2
+    files, warnings = fitted_compensation(
+        machine, fit, np.linspace(-half, half, args.comp_points), args.at, args.comp_format,
+        x0_mm=x0_mm, source=f"predicted by the elastic model fitted to {args.measurements}",
+        tol_um=args.tol_um, tol_urad=args.tol_urad)
+    base = Path(args.export_compensation)
+    for suffix, text in files.items():
+        path = base if not suffix else base.with_name(base.stem + suffix)
+        atomic_write_text(path, text)
+        say(args, f"wrote {path} (point {args.at}, {args.comp_format})")
+    for w in warnings:
+        print(f"diffguide fit: warning: {w}", file=sys.stderr)
 
 
 def _figures(meas, fits, profiles, s_m, truth):
@@ -636,66 +453,3 @@ def _figures(meas, fits, profiles, s_m, truth):
                          meas.sigma[sel] * 1e6, fits[""].fitted[sel] * 1e6, rigid))
     return {"profiles.png": fig1,
             "curves.png": FigureJob("diffguide.plotting.fit:curves_figure", (channels,))}
-
-
-def _error_sigma(machine, fit, x_m, j):
-    """σ of the joint errors at point ``j`` (m, rad), ``(n_pos, 6)``: the rails' posterior
-    covariance pushed through the model's Jacobian (one forward-mode pass over the spline
-    coefficients; the structure's own uncertainty enters only through the rails' covariance)."""
-    import jax
-    import jax.numpy as jnp
-
-    from ..guideway.rails import SplineRail
-    from ..machine.kinematics import joint_errors
-
-    n = fit.basis.n_coeffs
-    start, spacing = fit.basis.start, fit.basis.spacing
-
-    def errors(c):
-        c = c.reshape(2, 2, n)
-        rails = tuple(SplineRail(start, spacing, c[r, 0], c[r, 1]) for r in range(2))
-        return joint_errors(machine, rails, x_m).errors[:, j, :]
-
-    J = np.asarray(jax.jacfwd(errors)(jnp.asarray(np.asarray(fit.coeffs).reshape(-1))))
-    return np.sqrt(np.maximum(np.einsum("pek,kl,pel->pe", J, np.asarray(fit.cov), J), 0.0))
-
-
-def _export_compensation(args, cfg, measured_points, fit, family, x0_mm=0.0) -> None:
-    """The fitted model's errors at ``--at`` over the stroke, as a compensation table in
-    ``--format`` (machine coordinates ``X = x + x0``; σ from the posterior), with a warning
-    for each point where a rigid-body compensation from ``--at`` would not hold."""
-    from ..io.atomic import atomic_write_text
-    from ..io.config import spec_from_config
-    from ..machine.build import build_machine
-    from ..machine.kinematics import joint_errors
-    from ..studies.compensation import location_warnings
-    from ..studies.exports import export_compensation
-
-    points = {k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()}
-    points.update(measured_points)  # --at and the counts were checked before the fit
-    kw = {}  # the fitted structure
-    if "thickness" in fit.structure:
-        kw["thickness"] = fit.structure["thickness"]["value"]
-    if "preload" in fit.structure:
-        kw["preload_fraction"] = fit.structure["preload"]["value"]
-    machine = build_machine(spec_from_config(cfg), nx=args.nx, ny=args.ny, points=points, **kw)
-    half = cfg["machine"]["stroke_mm"] / 2
-    x_mm = np.linspace(-half, half, args.comp_points)
-    je = joint_errors(machine, fit.rails(), x_mm * 1e-3)
-    if not bool(np.all(np.asarray(je.converged))):
-        raise ValueError("the equilibrium of the fitted model did not converge over the stroke; "
-                         "no compensation table written")
-    j = list(je.point_names).index(args.at)
-    errs = je.user_units()
-    sigma = _error_sigma(machine, fit, x_mm * 1e-3, j)
-    files = export_compensation(
-        args.comp_format, x_mm, np.asarray(je.errors)[:, j, :], sigma, x0_mm=x0_mm,
-        point=args.at, source=f"predicted by the elastic model fitted to {args.measurements}")
-    base = Path(args.export_compensation)
-    for suffix, text in files.items():
-        path = base if not suffix else base.with_name(base.stem + suffix)
-        atomic_write_text(path, text)
-        say(args, f"wrote {path} (point {args.at}, {args.comp_format})")
-    for w in location_warnings(errs, je.point_names, np.asarray(je.points_xy), args.at,
-                               args.tol_um, args.tol_urad):
-        print(f"diffguide fit: warning: {w}", file=sys.stderr)

@@ -73,98 +73,16 @@ def identifiability(fit, machine=None, *, n_wavelengths: int = 40, threshold: fl
         threshold: transfer below which a component is called undetermined.
     """
     basis, Z, J = fit.basis, fit.Z, fit.jacobian
-    n = basis.n_coeffs
     nt = fit.n_theta
     M = J.T @ J
-    H = M + fit.penalty
-    R_all = np.linalg.solve(H, M)
+    R_all = np.linalg.solve(M + fit.penalty, M)
     R = R_all[:nt, :nt]  # the rails' resolution, the structure and lead marginalised
-
-    # 1. gauge modes
-    Jc = fit.jacobian_full
-    norm_J = np.linalg.norm(Jc, 2)
-    sv_full = np.linalg.svd(Jc, compute_uv=False)
-    s = basis.grid(801)
-    greville = basis.start + basis.spacing * (np.arange(n) - 1.0)  # linear functions exactly
-    modes = []
-    for k in range(4):
-        g = np.zeros(4 * n)
-        g[k * n:(k + 1) * n] = 1.0
-        modes.append((f"offset of {profile_label(k)}", g))
-    for plane in PLANES:
-        g = np.zeros(4 * n)
-        for k, (_, pl) in enumerate(PROFILES):
-            if pl == plane:
-                g[k * n:(k + 1) * n] = greville - greville.mean()
-        modes.append((f"common {plane} slope of both rails", g))
-    gauge_rows = []
-    for name, g in modes:
-        vis = float(np.linalg.norm(Jc @ g) / (norm_J * np.linalg.norm(g)))
-        gauge_rows.append({"mode": name, "relative_visibility": vis,
-                           "fixed": name in fit.gauge})
-    tol = 1e-8 * sv_full[0]
-    rank_def = int(np.sum(sv_full < tol)) + max(Jc.shape[1] - Jc.shape[0], 0)
-
-    # 2. singular values and filter factors
+    gauge, sv_full = _gauge_report(fit)
     sv = np.linalg.svd(J[:, :nt], compute_uv=False)
-    mu = np.sort(np.real(np.linalg.eigvals(R)))[::-1]
-    mu = np.clip(mu, 0.0, 1.0)
-
-    # 3. wavelength transfer
+    mu = np.clip(np.sort(np.real(np.linalg.eigvals(R)))[::-1], 0.0, 1.0)  # filter factors
     L = basis.end - basis.start
-    lams = np.geomspace(2 * basis.spacing, 2 * L, n_wavelengths)
-    B = basis.matrix(s)
-    BZ = np.kron(np.eye(4), B) @ Z
-    pinv = np.linalg.pinv(BZ)
-    combos = []
-    for plane, kind in _COMBOS:
-        w = _combo_profiles(plane, kind)
-        rows = []
-        for lam_w in lams:
-            worst = np.inf
-            for phase in (0.0, 0.5 * np.pi):
-                wave = np.sin(2 * np.pi * (s - s.mean()) / lam_w + phase)
-                target = np.concatenate([wi * wave for wi in w])
-                theta = pinv @ target
-                e_in = BZ @ theta
-                if e_in @ e_in < 1e-6 * (target @ target):  # a gauge mode: nothing to recover
-                    continue
-                e_out = BZ @ (R @ theta)
-                worst = min(worst, float(e_in @ e_out / (e_in @ e_in)))
-            rows.append({"wavelength_mm": float(lam_w * 1e3),
-                         "transfer": None if not np.isfinite(worst) else worst})
-        bad = [r["wavelength_mm"] for r in rows if r["transfer"] is not None
-               and r["transfer"] < threshold]
-        combos.append({
-            "combination": f"{plane} {kind}" + (" (rail 2 − rail 1)" if kind == "difference"
-                                                else " ((rail 1 + rail 2)/2)"),
-            "transfer": rows,
-            "undetermined_wavelengths_mm": _bands(bad, lams * 1e3),
-            "determined": not bad,
-        })
-
-    # per-profile σ and the determined s-range (where σ stays within twice its median)
-    grid = basis.grid(401)
-    _, sig = fit.profiles(grid)
-    profiles = []
-    for k, (rail, plane) in enumerate(PROFILES):
-        sg = sig[rail, PLANES.index(plane)]
-        ok = sg <= 2 * np.median(sg)
-        idx = np.flatnonzero(ok)
-        profiles.append({
-            "profile": profile_label(k),
-            "sigma_rms_um": float(np.sqrt(np.mean(sg**2)) * 1e6),
-            "sigma_max_um": float(sg.max() * 1e6),
-            "determined_s_mm": [float(grid[idx[0]] * 1e3), float(grid[idx[-1]] * 1e3)],
-        })
     report = {
-        "gauge": {
-            "fixed_modes": list(fit.gauge),
-            "modes": gauge_rows,
-            "numerical_null_space_dim": rank_def,
-            "note": "the profiles are reported with each profile's mean zero and, where fixed, "
-                    "the common slope zero; compare a known truth only after removing the same",
-        },
+        "gauge": gauge,
         "singular_values": {
             "whitened_gauge_fixed": sv.tolist(),
             "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else None,
@@ -181,8 +99,8 @@ def identifiability(fit, machine=None, *, n_wavelengths: int = 40, threshold: fl
             "data_determined_directions": int(np.sum(mu >= threshold)),
             "prior_determined_directions": int(np.sum(mu < threshold)),
         },
-        "wavelengths": combos,
-        "profiles": profiles,
+        "wavelengths": _wavelength_transfer(fit, R, n_wavelengths, threshold),
+        "profiles": _profile_sigma(fit),
         "knot_spacing_mm": basis.spacing * 1e3,
         "threshold": threshold,
     }
@@ -193,6 +111,105 @@ def identifiability(fit, machine=None, *, n_wavelengths: int = 40, threshold: fl
             for k, v in blind_wavelengths(machine, 2 * L).items()
         }
     return report
+
+
+def _gauge_modes(basis):
+    """The gauge modes as coefficient vectors: each profile's offset, each plane's common
+    slope of both rails (linear functions exactly, on the Greville abscissae)."""
+    n = basis.n_coeffs
+    greville = basis.start + basis.spacing * (np.arange(n) - 1.0)
+    modes = []
+    for k in range(4):
+        g = np.zeros(4 * n)
+        g[k * n:(k + 1) * n] = 1.0
+        modes.append((f"offset of {profile_label(k)}", g))
+    for plane in PLANES:
+        g = np.zeros(4 * n)
+        for k, (_, pl) in enumerate(PROFILES):
+            if pl == plane:
+                g[k * n:(k + 1) * n] = greville - greville.mean()
+        modes.append((f"common {plane} slope of both rails", g))
+    return modes
+
+
+def _gauge_report(fit):
+    """The gauge section (each mode's relative visibility ``‖J g‖ / (‖J‖₂ ‖g‖)`` and the
+    numerical null-space dimension) and the singular values of the full Jacobian."""
+    Jc = fit.jacobian_full
+    norm_J = np.linalg.norm(Jc, 2)
+    sv_full = np.linalg.svd(Jc, compute_uv=False)
+    rows = []
+    for name, g in _gauge_modes(fit.basis):
+        vis = float(np.linalg.norm(Jc @ g) / (norm_J * np.linalg.norm(g)))
+        rows.append({"mode": name, "relative_visibility": vis, "fixed": name in fit.gauge})
+    tol = 1e-8 * sv_full[0]
+    rank_def = int(np.sum(sv_full < tol)) + max(Jc.shape[1] - Jc.shape[0], 0)
+    return {
+        "fixed_modes": list(fit.gauge),
+        "modes": rows,
+        "numerical_null_space_dim": rank_def,
+        "note": "the profiles are reported with each profile's mean zero and, where fixed, "
+                "the common slope zero; compare a known truth only after removing the same",
+    }, sv_full
+
+
+def _wavelength_transfer(fit, R, n_wavelengths: int, threshold: float) -> list[dict]:
+    """Per profile combination, the transfer ``T(λ)`` of a sinusoid (the worse of two phases)
+    through the resolution matrix ``R`` and the undetermined bands (``T < threshold``)."""
+    basis, Z = fit.basis, fit.Z
+    s = basis.grid(801)
+    lams = np.geomspace(2 * basis.spacing, 2 * (basis.end - basis.start), n_wavelengths)
+    BZ = np.kron(np.eye(4), basis.matrix(s)) @ Z
+    pinv = np.linalg.pinv(BZ)
+    combos = []
+    for plane, kind in _COMBOS:
+        w = _combo_profiles(plane, kind)
+        rows = [{"wavelength_mm": float(lam_w * 1e3),
+                 "transfer": _transfer(BZ, pinv, R, w, s, lam_w)} for lam_w in lams]
+        bad = [r["wavelength_mm"] for r in rows if r["transfer"] is not None
+               and r["transfer"] < threshold]
+        combos.append({
+            "combination": f"{plane} {kind}" + (" (rail 2 − rail 1)" if kind == "difference"
+                                                else " ((rail 1 + rail 2)/2)"),
+            "transfer": rows,
+            "undetermined_wavelengths_mm": _bands(bad, lams * 1e3),
+            "determined": not bad,
+        })
+    return combos
+
+
+def _transfer(BZ, pinv, R, w, s, lam_w):
+    """The recovered fraction of a sinusoid of wavelength ``lam_w`` (m) in the combination
+    ``w``, the worse of two phases; None where both phases are gauge modes."""
+    worst = np.inf
+    for phase in (0.0, 0.5 * np.pi):
+        wave = np.sin(2 * np.pi * (s - s.mean()) / lam_w + phase)
+        target = np.concatenate([wi * wave for wi in w])
+        theta = pinv @ target
+        e_in = BZ @ theta
+        if e_in @ e_in < 1e-6 * (target @ target):  # a gauge mode: nothing to recover
+            continue
+        e_out = BZ @ (R @ theta)
+        worst = min(worst, float(e_in @ e_out / (e_in @ e_in)))
+    return None if not np.isfinite(worst) else worst
+
+
+def _profile_sigma(fit) -> list[dict]:
+    """Per profile: σ RMS and maximum (µm) and the determined ``s`` range (mm), where σ stays
+    within twice its median."""
+    grid = fit.basis.grid(401)
+    _, sig = fit.profiles(grid)
+    profiles = []
+    for k, (rail, plane) in enumerate(PROFILES):
+        sg = sig[rail, PLANES.index(plane)]
+        idx = np.flatnonzero(sg <= 2 * np.median(sg))
+        profiles.append({
+            "profile": profile_label(k),
+            "sigma_rms_um": float(np.sqrt(np.mean(sg**2)) * 1e6),
+            "sigma_max_um": float(sg.max() * 1e6),
+            "determined_s_mm": [float(grid[idx[0]] * 1e3), float(grid[idx[-1]] * 1e3)],
+        })
+    return profiles
 
 
 def _bands(bad, all_mm):

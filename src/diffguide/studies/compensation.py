@@ -91,3 +91,54 @@ def location_warnings(
                     f"compensation made at {at} does not hold at {name}"
                 )
     return out
+
+
+def fitted_machine(spec, fit, *, points: dict, nx: int | None = None, ny: int | None = None):
+    """The machine a fit describes: ``spec`` (a :class:`~diffguide.machine.spec.MachineSpec`)
+    built at the fitted structure (``fit.structure``: thickness in m, preload as a fraction of
+    C; the spec's own values where the fit held them) with the points ``{name: (x, y)}`` (m)
+    and the mesh ``nx × ny`` (default the spec's)."""
+    from ..machine.build import build_machine
+
+    kw = {}
+    if "thickness" in fit.structure:
+        kw["thickness"] = fit.structure["thickness"]["value"]
+    if "preload" in fit.structure:
+        kw["preload_fraction"] = fit.structure["preload"]["value"]
+    return build_machine(spec, nx=nx, ny=ny, points=points, **kw)
+
+
+def fitted_compensation(machine, fit, x_mm, at: str, fmt: str, *, x0_mm: float = 0.0,
+                        source: str = "", tol_um: float = 2.0,
+                        tol_urad: float = 5.0) -> tuple[dict[str, str], list[str]]:
+    """A compensation export of the errors a fitted model predicts at point ``at``.
+
+    Arguments:
+        machine: the fitted machine (:func:`fitted_machine`). fit: its
+            :class:`~diffguide.inverse.RailFit`. x_mm: table positions (mm, x = 0 the reference
+            position). at: the point. fmt: a :data:`~.exports.FORMATS` name. x0_mm: the
+            machine coordinate (mm) of x = 0. source: a line for the header. tol_um, tol_urad:
+            the tolerances of :func:`location_warnings` (µm, µrad).
+
+    Returns ``({suffix: text}, warnings)``: :func:`~.exports.export_compensation`'s files, with
+    σ from the fit's posterior (:func:`~diffguide.inverse.predict.error_sigma`), and one warning
+    per point where a rigid-body compensation made at ``at`` would not hold. ``ValueError``
+    when an equilibrium over the stroke does not converge.
+    """
+    from ..inverse.predict import error_sigma
+    from ..machine.kinematics import joint_errors
+    from .exports import export_compensation
+
+    x_mm = np.asarray(x_mm, float)
+    je = joint_errors(machine, fit.rails(), x_mm * 1e-3)
+    if not bool(np.all(np.asarray(je.converged))):
+        raise ValueError("the equilibrium of the fitted model did not converge over the stroke; "
+                         "no compensation table written")
+    j = list(je.point_names).index(at)
+    errs = je.user_units()
+    sigma = error_sigma(machine, fit, x_mm * 1e-3, j)
+    files = export_compensation(fmt, x_mm, np.asarray(je.errors)[:, j, :], sigma, x0_mm=x0_mm,
+                                point=at, source=source)
+    warnings = location_warnings(errs, je.point_names, np.asarray(je.points_xy), at, tol_um,
+                                 tol_urad)
+    return files, warnings

@@ -1,0 +1,82 @@
+"""The text files of a fit's output folder: ``rails.csv`` (the profiles with σ), ``fit.csv``
+(every reading with fitted value and residual) and ``layout.csv`` (the measured layout, in the
+planner's format). SI inside; mm and µm (or the reading's own unit) in the files."""
+
+import numpy as np
+
+from ..inverse.data import QUANTITIES
+from ..inverse.plan import KINDS
+from .measurements import ANGULAR_UNITS, LINEAR_UNITS, format_csv
+
+#: Spacing (mm) of the ``s`` grid of ``rails.csv`` and the figures.
+S_STEP_MM = 2.0
+
+
+def profile_grid(basis, step_mm: float = S_STEP_MM) -> np.ndarray:
+    """The ``s`` grid (m) of ``rails.csv``: every ``step_mm`` (mm) on multiples of it over the
+    fitted range ``[basis.start, basis.end]`` (m), with both ends."""
+    s0 = np.ceil(basis.start * 1e3 / step_mm - 1e-9) * step_mm
+    s_m = np.arange(s0, basis.end * 1e3 + 1e-9, step_mm) * 1e-3
+    return np.unique(np.clip(np.concatenate([[basis.start], s_m, [basis.end]]), basis.start,
+                             basis.end))
+
+
+def rails_csv_text(s_m, val, sig) -> str:
+    """``rails.csv``: ``rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,
+    horizontal_sigma_um``, one row per rail and ``s``; ``s_m`` (m), profiles ``val`` and σ
+    ``sig`` ``(2 rails, 2 planes, len(s))`` (m), written in mm and µm."""
+    lines = ["rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um"]
+    for r in range(2):
+        for i, s in enumerate(s_m):
+            lines.append(f"{r + 1},{s * 1e3:.3f},{val[r, 0, i] * 1e6:.5f},"
+                         f"{sig[r, 0, i] * 1e6:.5f},{val[r, 1, i] * 1e6:.5f},"
+                         f"{sig[r, 1, i] * 1e6:.5f}")
+    return "\n".join(lines) + "\n"
+
+
+def fit_csv_text(meas, fits: dict) -> str:
+    """``fit.csv``: every input reading (``meas.readings``, in its own unit) with its status
+    (used, an outlier reading set aside when merging, an outlier value given zero weight) and,
+    per fit in ``fits`` (``{label: RailFit}``, ``""`` the elastic fit, whose outliers are
+    reported), the fitted value and the residual ``measured − fitted`` in the reading's unit."""
+    cols = ["line", "position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit", "run",
+            "direction", "instrument", "status"]
+    for label in fits:
+        cols += [f"fitted{label}", f"residual{label}"]
+    outlier_rows = set(int(i) for i in fits[""].outliers)
+    rows = []
+    for r, k in zip(meas.readings, meas.row_of_reading):
+        f = {**LINEAR_UNITS, **ANGULAR_UNITS}[r.unit]
+        status = ("outlier reading (not used)" if k < 0 else
+                  "outlier value (zero weight)" if int(k) in outlier_rows else "used")
+        row = {"line": r.line, "position_mm": float(r.position * 1e3), "point": r.point,
+               "x_mm": float(r.xy[0] * 1e3), "y_mm": float(r.xy[1] * 1e3),
+               "quantity": r.quantity, "value": float(r.value / f), "unit": r.unit,
+               "run": r.run, "direction": r.direction, "instrument": r.instrument,
+               "status": status}
+        for label, fit in fits.items():
+            row[f"fitted{label}"] = "" if k < 0 else float(fit.fitted[k] / f)
+            row[f"residual{label}"] = "" if k < 0 else float((r.value - fit.fitted[k]) / f)
+        rows.append(row)
+    return format_csv(rows, tuple(cols))
+
+
+def layout_csv_text(meas) -> str:
+    """The measured layout in ``diffguide plan``'s plan format (``--start``/``--compare``):
+    ``instrument,point,x_mm,y_mm,reads`` — one row per point and instrument kind (``level``,
+    ``interferometer`` for angular optics, ``straightness`` for straightness optics; what the
+    planner does not model — positioning, an interferometer reading roll — is left out),
+    ``reads`` the quantities read there, ``+``-joined."""
+    reads: dict[tuple[int, str], list[str]] = {}
+    for p, q, inst in meas.channels:
+        quantity = QUANTITIES[q]
+        # a level is a level; an interferometer's optics are the planner's angular
+        # interferometer or its straightness optics, by what they read
+        kinds = ("level",) if inst == "level" else ("interferometer", "straightness")
+        kind = next((k for k in kinds if quantity in KINDS[k]), None)
+        if kind is not None and quantity not in reads.setdefault((p, kind), []):
+            reads[(p, kind)].append(quantity)
+    rows = [{"instrument": kind, "point": meas.point_names[p],
+             "x_mm": float(meas.points_xy[p][0] * 1e3), "y_mm": float(meas.points_xy[p][1] * 1e3),
+             "reads": "+".join(qs)} for (p, kind), qs in sorted(reads.items())]
+    return format_csv(rows, ("instrument", "point", "x_mm", "y_mm", "reads"))
