@@ -310,10 +310,7 @@ def _placement_factor(inst, site, sig, positions, raw, mixed, draws, n_q) -> np.
         return a / sig
 
     Jt = np.vstack([centred(raw[(site, q)], q) for q in inst.quantities])
-    D = [
-        np.vstack([centred(mixed[(site, q, k)], q) for q in inst.quantities])
-        for k in range(n_q)
-    ]
+    D = [np.vstack([centred(mixed[(site, q, k)], q) for q in inst.quantities]) for k in range(n_q)]
     n_th = draws.shape[1]
     out = []
     for th in draws:
