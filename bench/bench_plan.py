@@ -5,7 +5,7 @@ The planner of ``diffguide plan``'s defaults: a 7 × 3 grid of candidate sites, 
 (the fit's default priors, 8 prior rail draws), the worst-profile-σ criterion, compared with the
 bundled layout. Reported: the machine family's build (9 table condensations) on its own, then
 ``plan(...)`` twice — the first call (trace + compile + sensitivities + greedy), the second
-(compiled) — split into the sensitivities (the Planner) and the greedy selection. Run:
+(compiled) — split into the sensitivities (build_planner) and the greedy selection. Run:
 
     python bench/bench_plan.py [--grid 7x3] [--draws 8] [--json FILE]
 """
@@ -23,7 +23,7 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 from diffguide.inverse import MachineFamily, Prior, StructurePriors  # noqa: E402
-from diffguide.inverse.plan import Instrument, Planner, grid_sites  # noqa: E402
+from diffguide.inverse.plan import Instrument, build_planner, grid_sites  # noqa: E402
 from diffguide.machine.majda2012 import majda2012_machine  # noqa: E402
 
 
@@ -53,7 +53,7 @@ def main() -> None:
     rows = []
     for call in ("first", "second"):
         t = time.perf_counter()
-        planner = Planner(
+        planner = build_planner(
             family,
             [Instrument("level", 4), Instrument("interferometer", 1)],
             positions,

@@ -49,7 +49,7 @@ import time
 import numpy as np
 import matplotlib.pyplot as plt
 from diffguide.inverse import MachineFamily, Prior, StructurePriors
-from diffguide.inverse.plan import Instrument, Planner, grid_sites
+from diffguide.inverse.plan import Instrument, build_planner, grid_sites
 from diffguide.machine.majda2012 import majda2012_machine
 from diffguide.io.config import default_config
 from diffguide.plotting.plan import plot_plan_sigma, plot_plan_sites
@@ -61,8 +61,8 @@ positions = np.linspace(-0.35, 0.35, 36)      # the 700 mm stroke (m)
 priors = StructurePriors(Prior(0.05, 0.025, 0.10), Prior(0.08, 0.02, 0.16))  # diffguide fit's
 family = MachineFamily.build(lambda **kw: majda2012_machine(points=sites, **kw), priors)
 t0 = time.perf_counter()
-planner = Planner(family, [Instrument("level", 8), Instrument("interferometer", 2),
-                           Instrument("straightness", 1)], positions, rail_rms=1e-6)
+planner = build_planner(family, [Instrument("level", 8), Instrument("interferometer", 2),
+                                 Instrument("straightness", 1)], positions, rail_rms=1e-6)
 print(f"planner: {len(sites)} sites, {len(planner.blocks)} candidate placements, "
       f"{planner.n_theta} rail + {planner.n_q} structural unknowns, lambda = {planner.lam:.3g}, "
       f"{time.perf_counter() - t0:.0f} s")

@@ -38,7 +38,7 @@ from diffguide.cli import main
 from diffguide.guideway.rails import SplineRail
 from diffguide.inverse import fit_rails
 from diffguide.inverse.data import QUANTITIES, Measurements
-from diffguide.inverse.plan import Instrument, Planner, expected_rms_lambda, grid_sites, plan
+from diffguide.inverse.plan import Instrument, build_planner, expected_rms_lambda, grid_sites, plan
 from diffguide.machine.kinematics import joint_errors
 
 #: Candidate sites: 5 × 3 over the table top, 50 mm inside the edges — it holds the bundled
@@ -264,7 +264,7 @@ def test_planner_input_errors(planned):
     with pytest.raises(ValueError, match="reads"):
         Instrument("level", 1, ("ECX",))
     with pytest.raises(ValueError, match="positions"):
-        Planner(family, [Instrument("level")], [0.0, 0.1])
+        build_planner(family, [Instrument("level")], [0.0, 0.1])
     with pytest.raises(ValueError, match="criterion"):
         res.planner.greedy(None, "E")
     with pytest.raises(ValueError, match="placement"):

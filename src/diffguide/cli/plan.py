@@ -36,6 +36,17 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "interferometer or straightness), or 'bundled' (levels at the four corners 50 mm "
         "inside the edges, an interferometer at the centre).",
     )
+    _add_machine_arguments(p)
+    _add_instrument_arguments(p)
+    _add_site_arguments(p)
+    _add_experiment_arguments(p)
+    _add_structure_arguments(p)
+    p.set_defaults(func=run)
+    return p
+
+
+def _add_machine_arguments(p) -> None:
+    """The machine and the output folder."""
     p.add_argument(
         "--preset",
         default="majda2012",
@@ -48,6 +59,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="machine configuration file (TOML); overrides --preset",
     )
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (replaced)")
+
+
+def _add_instrument_arguments(p) -> None:
+    """Per instrument kind: how many, the σ of one reading, what it reads."""
     for kind, n, sig, unit in (
         ("level", 4, 4.0, "urad"),
         ("interferometer", 1, 2.0, "urad"),
@@ -74,6 +89,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
             metavar="Q[,Q]",
             help=f"what one {kind} reads, among {','.join(QUANTITY_CHOICES[kind])} (default both)",
         )
+
+
+def _add_site_arguments(p) -> None:
+    """Candidate sites, placements already decided, the plan to compare with."""
     g = p.add_mutually_exclusive_group()
     g.add_argument(
         "--grid",
@@ -98,6 +117,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="a plan to compare with (default: the --start plan where given, else bundled); "
         "'none' for no comparison",
     )
+
+
+def _add_experiment_arguments(p) -> None:
+    """Positions, runs, the prior's expected rail RMS and the criterion."""
     p.add_argument(
         "--positions",
         type=int,
@@ -133,6 +156,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
         metavar="Q[,Q]",
         help="errors predicted at the work point (default EAX,EBX,ECX)",
     )
+
+
+def _add_structure_arguments(p) -> None:
+    """The structure's unknowns and priors, the prior draws, the figures."""
     p.add_argument(
         "--structure",
         choices=("estimate", "fixed"),
@@ -159,52 +186,20 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="prior rail draws at which the experiment is linearised (default 8)",
     )
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
-    p.set_defaults(func=run)
-    return p
 
 
-def _rows(path, required, optional=()):
-    """The data rows of a small CSV (:func:`diffguide.io.csvtable.read_table`: comments, blank
-    lines, separators and one-line errors as for every input file)."""
-    from ..io.csvtable import read_table
-
-    rows = read_table(path, required, optional)
-    if not rows:
-        raise ValueError(f"{path}: no rows")
-    return rows
-
-
-def _number(path, line, row, key):
-    from ..io.csvtable import number
-
-    return number(row, key, str(path), line, "mm")
-
-
-def _on_table(name, x, y, cfg, where):
-    half_l, half_w = cfg["table"]["length_mm"] / 2, cfg["table"]["width_mm"] / 2
-    if abs(x) > half_l or abs(y) > half_w:
-        raise ValueError(
-            f"{where}: site {name!r} at ({x:g}, {y:g}) mm is off the table "
-            f"(|x| <= {half_l:g}, |y| <= {half_w:g} mm)"
-        )
+def _table_mm(cfg) -> tuple[float, float]:
+    return cfg["table"]["length_mm"], cfg["table"]["width_mm"]
 
 
 def _sites(args, cfg) -> dict:
-    from ..inverse.plan import grid_sites
+    """Candidate sites ``{name: (x, y)}`` (m): ``--sites`` or the ``--grid``."""
+    from ..inverse.instruments import grid_sites
+    from ..io.plan_files import read_sites
     from ._common import parse_mesh_text
 
     if args.sites:
-        out = {}
-        for line, row in _rows(args.sites, ("name", "x_mm", "y_mm")):
-            x, y = (_number(args.sites, line, row, k) for k in ("x_mm", "y_mm"))
-            name = row["name"]
-            if not name or name in out:
-                raise ValueError(
-                    f"{args.sites}:{line}: site names must be unique and non-empty, got {name!r}"
-                )
-            _on_table(name, x, y, cfg, f"{args.sites}:{line}")
-            out[name] = (x * 1e-3, y * 1e-3)
-        return out
+        return read_sites(args.sites, _table_mm(cfg))
     try:
         nx, ny = parse_mesh_text(args.grid)
     except ValueError:
@@ -216,60 +211,37 @@ def _sites(args, cfg) -> dict:
     return grid_sites(cfg["table"]["length_mm"] * 1e-3, cfg["table"]["width_mm"] * 1e-3, nx, ny)
 
 
-def _compare(args, cfg, sites):
-    """The plan to compare with (``--compare``; by default the ``--start`` plan where given,
-    else the bundled layout) as ``(kind, site)``, adding its sites to ``sites`` where new."""
+def _start_and_compare(args, cfg, sites):
+    """``--start`` and the plan to compare with (``--compare``; by default the ``--start`` plan
+    where given, else the bundled layout) as ``(kind, site)``, adding their sites to ``sites``
+    where new."""
+    from ..io.plan_files import read_placements
+
+    table = _table_mm(cfg)
+    start = [] if args.start is None else read_placements(args.start, "--start", table, sites)
     which = args.compare if args.compare is not None else (args.start or "bundled")
-    return None if which == "none" else _placements(which, "--compare", cfg, sites)
+    compare = None if which == "none" else read_placements(which, "--compare", table, sites)
+    return start, compare
 
 
-def _placements(which, option, cfg, sites):
-    """A plan given as ``bundled`` or a CSV file (``instrument,point,x_mm,y_mm``; instrument
-    level, interferometer or straightness) as ``(kind, site)``, adding its sites to ``sites``
-    where new; ``option`` names the command-line option in errors."""
-    if which == "bundled":
-        hx, hy = cfg["table"]["length_mm"] / 2 - 50, cfg["table"]["width_mm"] / 2 - 50
-        rows = [("level", x, y) for x, y in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))]
-        rows.append(("interferometer", 0.0, 0.0))
-        where = "bundled layout"
-    else:
-        rows, named = [], {}
-        for line, row in _rows(which, ("instrument", "x_mm", "y_mm"), ("point", "reads")):
-            kind = row["instrument"]
-            if kind not in QUANTITY_CHOICES:
-                raise ValueError(
-                    f"{which}:{line}: field 'instrument': must be one of "
-                    f"{', '.join(QUANTITY_CHOICES)}, got {kind!r}"
-                )
-            x, y = (_number(which, line, row, k) for k in ("x_mm", "y_mm"))
-            _on_table(row.get("point", "?"), x, y, cfg, f"{which}:{line}")
-            if row.get("point"):
-                first = named.setdefault(row["point"], (line, x, y))
-                if abs(first[1] - x) > 1e-6 or abs(first[2] - y) > 1e-6:
-                    raise ValueError(
-                        f"{which}:{line}: field 'point': {row['point']!r} is at "
-                        f"({x:g}, {y:g}) mm here but at ({first[1]:g}, {first[2]:g}) mm on line "
-                        f"{first[0]}; one name, one location"
-                    )
-            rows.append((kind, x, y))
-        where = which
-    out = []
-    for kind, x, y in rows:
-        name = next(
-            (
-                n
-                for n, (sx, sy) in sites.items()
-                if abs(sx * 1e3 - x) < 1e-6 and abs(sy * 1e3 - y) < 1e-6
-            ),
-            None,
-        )
-        if name is None:
-            name = f"U{len([n for n in sites if n.startswith('U')]) + 1}"
-            sites[name] = (x * 1e-3, y * 1e-3)
-        out.append((kind, name))
-    if len(set(out)) != len(out):
-        raise ValueError(f"{option} {where}: the same instrument twice on one site")
-    return out
+def _work_point(args, cfg, sites):
+    """``("WORK", quantities)`` from ``--work-point``/``--work-reads`` (the site added to
+    ``sites``), or None."""
+    from ..inverse.instruments import check_on_table
+
+    if args.work_point is None:
+        return None
+    try:
+        wx, wy = (float(v) for v in args.work_point.split(","))
+    except ValueError:
+        raise ValueError(f"--work-point must be X,Y (mm), got {args.work_point!r}") from None
+    check_on_table("work point", wx, wy, _table_mm(cfg), "--work-point")
+    wq = tuple(q.strip().upper() for q in args.work_reads.split(","))
+    bad = [q for q in wq if q not in ("EYX", "EZX", "EAX", "EBX", "ECX")]
+    if bad or not wq:
+        raise ValueError(f"--work-reads must be among EYX,EZX,EAX,EBX,ECX, got {args.work_reads!r}")
+    sites["WORK"] = (wx * 1e-3, wy * 1e-3)
+    return ("WORK", wq)
 
 
 def _instruments(args):
@@ -323,76 +295,13 @@ def _check(args):
         raise ValueError("--criterion work needs --work-point X,Y (mm)")
 
 
-def _table_csv(result) -> str:
-    crit = result.criterion
-    unit = "nats" if crit == "D" else "um"
-    lines = [
-        f"step,instrument,site,x_mm,y_mm,reads,{crit}_before_{unit},{crit}_after_{unit},"
-        "worst_sigma_um,rms_sigma_um"
-    ]
-    for k, s in enumerate(result.steps):
-        lines.append(
-            f"{k + 1},{s.placement[0]},{s.placement[1]},{s.xy[0] * 1e3:.1f},"
-            f"{s.xy[1] * 1e3:.1f},{'+'.join(s.quantities)},{s.before:.5g},"
-            f"{s.after:.5g},{s.worst * 1e6:.5g},{s.rms * 1e6:.5g}"
-        )
-    return "\n".join(lines) + "\n"
-
-
-def _evaluation_json(ev, sites):
-    return {
-        "placements": [
-            {"instrument": k, "site": s, "x_mm": sites[s][0] * 1e3, "y_mm": sites[s][1] * 1e3}
-            for k, s in ev.placements
-        ],
-        "worst_profile_sigma_um": ev.worst * 1e6,
-        "rms_profile_sigma_um": ev.rms * 1e6,
-        "log_det_cov": ev.logdet,
-        "work_point_sigma": None if not np.isfinite(ev.work) else ev.work * 1e6,
-        "worst_profile_sigma_um_per_profile": {
-            f"rail {r + 1} {pl}": float(ev.sigma[r, p].max() * 1e6)
-            for r in range(2)
-            for p, pl in enumerate(("vertical", "horizontal"))
-        },
-        "structure_posterior_over_prior_sigma": ev.structure_ratio,
-    }
-
-
-def run(args) -> int:
+def _family(args, cfg, spec, sites, n_candidates, instruments):
+    """The machine family over ``sites`` (structure unknown as ``diffguide fit`` has it, or as
+    the options say) and its priors, after a line saying what is planned."""
     from ..inverse import MachineFamily
-    from ..inverse.plan import plan
-    from ..io.config import spec_from_config
     from ..machine.build import build_machine
-    from ._common import machine_config
-    from .fit import _check_out, _jsonable, _write_dir, structure_priors
+    from .fit import structure_priors
 
-    t_start = time.perf_counter()
-    _check_out(Path(args.out))
-    _check(args)
-    cfg = machine_config(args)
-    spec = spec_from_config(cfg)
-    instruments = _instruments(args)
-    sites = _sites(args, cfg)
-    candidates = tuple(sites)
-    start = [] if args.start is None else _placements(args.start, "--start", cfg, sites)
-    compare = _compare(args, cfg, sites)
-    used = {k for k, _ in (compare or []) + start}
-    instruments = [i for i in instruments if i.count > 0 or i.kind in used]
-    work = None
-    if args.work_point is not None:
-        try:
-            wx, wy = (float(v) for v in args.work_point.split(","))
-        except ValueError:
-            raise ValueError(f"--work-point must be X,Y (mm), got {args.work_point!r}") from None
-        _on_table("work point", wx, wy, cfg, "--work-point")
-        wq = tuple(q.strip().upper() for q in args.work_reads.split(","))
-        bad = [q for q in wq if q not in ("EYX", "EZX", "EAX", "EBX", "ECX")]
-        if bad or not wq:
-            raise ValueError(
-                f"--work-reads must be among EYX,EZX,EAX,EBX,ECX, got {args.work_reads!r}"
-            )
-        sites["WORK"] = (wx * 1e-3, wy * 1e-3)
-        work = ("WORK", wq)
     priors = structure_priors(
         argparse.Namespace(
             structure=args.structure,
@@ -402,27 +311,46 @@ def run(args) -> int:
         ),
         cfg,
     )
-    half = cfg["machine"]["stroke_mm"] / 2
-    positions = np.linspace(-half, half, args.positions) * 1e-3
 
     def make_machine(**kw):
         return build_machine(spec, nx=args.nx, ny=args.ny, points=sites, **kw)
 
+    kinds = ", ".join(
+        f"{i.count} {i.kind}(s) reading {'+'.join(i.quantities)}" for i in instruments if i.count
+    )
     say(
         args,
-        f"plan: {len(candidates)} candidate sites, "
-        + ", ".join(
-            f"{i.count} {i.kind}(s) reading {'+'.join(i.quantities)}"
-            for i in instruments
-            if i.count
-        )
-        + f"; {args.positions} positions x {args.runs} runs"
+        f"plan: {n_candidates} candidate sites, {kinds}"
+        f"; {args.positions} positions x {args.runs} runs"
         + ("" if args.unidirectional else " x 2 directions"),
     )
-    family = MachineFamily.build(make_machine, priors, progress=lambda t: say(args, t))
+    return MachineFamily.build(make_machine, priors, progress=lambda t: say(args, t)), priors
+
+
+def run(args) -> int:
+    from ..inverse.plan import plan
+    from ..io.config import spec_from_config
+    from ..io.plan_files import plan_csv, plan_report
+    from ._common import machine_config
+    from .fit import _check_out, _jsonable, _write_dir
+
+    t_start = time.perf_counter()
+    _check_out(Path(args.out))
+    _check(args)
+    cfg = machine_config(args)
+    spec = spec_from_config(cfg)
+    instruments = _instruments(args)
+    sites = _sites(args, cfg)
+    candidates = tuple(sites)
+    start, compare = _start_and_compare(args, cfg, sites)
+    used = {k for k, _ in (compare or []) + start}
+    instruments = [i for i in instruments if i.count > 0 or i.kind in used]
+    work = _work_point(args, cfg, sites)
+    family, priors = _family(args, cfg, spec, sites, len(candidates), instruments)
+    half = cfg["machine"]["stroke_mm"] / 2
     result = plan(
         family,
-        positions,
+        np.linspace(-half, half, args.positions) * 1e-3,
         instruments=instruments,
         criterion=args.criterion,
         compare=compare,
@@ -441,56 +369,20 @@ def run(args) -> int:
         + (f" (your plan: {result.compare.worst * 1e6:.3f} µm)" if compare else "")
         + f", prior only {result.prior.worst * 1e6:.3f} µm; {result.seconds:.1f} s",
     )
-    report = {
+    settings = {
         "command": "diffguide plan",
         "preset": None if args.config else args.preset,
         "config": args.config,
         "mesh": args.mesh,  # None: the machine's default table mesh
-        "criterion": args.criterion,
-        "criterion_unit": "nats" if args.criterion == "D" else "µm (µm/m for angles)",
-        "lambda": result.lam,
         "rail_rms_um": args.rail_rms_um,
-        "lambda_note": "pass to 'diffguide fit --lambda' to fit with the planner's prior",
         "positions": args.positions,
         "runs": args.runs,
         "directions": 1 if args.unidirectional else 2,
-        "instruments": [
-            {
-                "kind": i.kind,
-                "count": i.count,
-                "reads": list(i.quantities),
-                "reading_sigma": i.sigma * 1e6,
-            }
-            for i in instruments
-        ],
         "structure": "estimate" if priors.active() else "fixed",
         "draws": args.draws,
-        "gauge": "each profile's mean and each plane's common slope removed",
-        "candidate_sites": {n: [sites[n][0] * 1e3, sites[n][1] * 1e3] for n in candidates},
-        "start": [
-            {"instrument": k, "site": n, "x_mm": sites[n][0] * 1e3, "y_mm": sites[n][1] * 1e3}
-            for k, n in start
-        ],
-        "steps": [
-            {
-                "instrument": s.placement[0],
-                "site": s.placement[1],
-                "x_mm": s.xy[0] * 1e3,
-                "y_mm": s.xy[1] * 1e3,
-                "reads": list(s.quantities),
-                "before": s.before,
-                "after": s.after,
-                "worst_sigma_um": s.worst * 1e6,
-                "rms_sigma_um": s.rms * 1e6,
-            }
-            for s in result.steps
-        ],
-        "plan": _evaluation_json(result.best, sites),
-        "compare": None if compare is None else _evaluation_json(result.compare, sites),
-        "prior_only": _evaluation_json(result.prior, sites),
-        "planning_seconds": result.seconds,
     }
-    files = {"plan.csv": _table_csv(result)}
+    report = plan_report(result, sites, start, compare, settings)
+    files = {"plan.csv": plan_csv(result)}
     if not args.no_plots:
         files.update(_figures(result, cfg, compare))
     report["total_seconds"] = time.perf_counter() - t_start

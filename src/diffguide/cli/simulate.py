@@ -122,20 +122,9 @@ def parse_mesh(text: str) -> tuple[int, int]:
     return nx, ny
 
 
-def run(args) -> int:
-    import sys
-
-    from .._core.aot import cached_program
-    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
-    from ..io.config import spec_from_config
-    from ..io.rails_csv import read_rails_csv
-    from ..machine.errors import error_columns
-    from ..machine.build import build_machine
-    from ..machine.kinematics import joint_errors
-    from ..machine.majda2012 import paper_variant
-    from ..plotting import figure_of
-
-    cfg = machine_config(args)
+def _positions(args, cfg) -> np.ndarray:
+    """The swept positions (m): ``--positions`` or the whole stroke; within the stroke, and
+    ``--field-at`` within them."""
     positions = (
         default_positions(cfg) if args.positions is None else parse_positions(args.positions)
     )
@@ -151,6 +140,108 @@ def run(args) -> int:
             f"--field-at must lie within the swept positions [{positions.min() * 1e3:g}, "
             f"{positions.max() * 1e3:g}] mm, got {args.field_at:g}"
         )
+    return positions
+
+
+def _sweep(machine, rails, positions):
+    """:func:`~diffguide.machine.kinematics.joint_errors` at every position, stored as an
+    exported program in the cache folder: a second run does not trace it; it runs once per
+    process, so compiled at XLA's optimisation level 0 (the compile time dominates, the sweep's
+    run time stays in the milliseconds)."""
+    from .._core.aot import cached_program
+    from ..machine.kinematics import joint_errors
+
+    sweep = cached_program(
+        joint_errors,
+        "machine.kinematics.joint_errors",
+        compiler_options={"xla_backend_optimization_level": 0},
+    )
+    return sweep(machine, rails, np.asarray(positions, dtype=float))
+
+
+def _field_plot(args, name, machine, je, positions, say) -> None:
+    """``--field-plot``: EZX, roll and pitch over the table top at the position nearest
+    ``--field-at`` (default the last)."""
+    from ..io.atomic import atomic_savefig
+    from ..machine.kinematics import error_field
+    from ..plotting import figure_of
+    from ..plotting.errors import plot_error_field
+
+    k = len(positions) - 1
+    if args.field_at is not None:
+        k = int(np.argmin(np.abs(positions * 1e3 - args.field_at)))
+    xy, field = error_field(machine, je, k)
+    fig = figure_of(
+        plot_error_field(
+            xy,
+            np.asarray(field) * 1e6,
+            f"{name}: errors over the table at x = {positions[k] * 1e3:g} mm",
+        )
+    )
+    atomic_savefig(fig, args.field_plot, dpi=100)
+    say(f"wrote {args.field_plot}")
+
+
+def _compensation(args, name, je, errs, positions, say) -> None:
+    """``--export-compensation``: the table of ``--at`` in ``--format``, and a warning where
+    another point departs from the rigid-body prediction from it."""
+    import sys
+    from pathlib import Path
+
+    from ..io.atomic import atomic_write_text
+    from ..studies.compensation import location_warnings
+    from ..studies.exports import export_compensation
+
+    what = f"rails {args.rails}" if args.rails else f"variant {args.variant}"
+    j = list(je.point_names).index(args.at)
+    files = export_compensation(
+        args.comp_format,
+        positions * 1e3,
+        np.asarray(je.errors)[:, j, :],
+        None,
+        x0_mm=args.x0_mm,
+        point=args.at,
+        source=f"simulated, {name}, {what}",
+    )
+    base = Path(args.export_compensation)
+    for suffix, text in files.items():
+        path = base if not suffix else base.with_name(base.stem + suffix)
+        atomic_write_text(path, text)
+        say(f"wrote {path}")
+    warnings = location_warnings(
+        errs, je.point_names, np.asarray(je.points_xy), args.at, args.tol_um, args.tol_urad
+    )
+    for w in warnings:
+        print(f"diffguide simulate: warning: {w}", file=sys.stderr)
+
+
+def _plot(args, name, je, errs, positions, say) -> None:
+    """``--plot``: the six errors against position."""
+    from ..io.atomic import atomic_savefig
+    from ..plotting import figure_of
+    from ..plotting.errors import plot_joint_errors
+
+    what = f"rails from {args.rails}" if args.rails else f"variant {args.variant}"
+    table = "rigid table" if args.rigid_table else "elastic table"
+    fig = figure_of(
+        plot_joint_errors(positions * 1e3, errs, je.point_names, f"{name}, {what}, {table}")
+    )
+    atomic_savefig(fig, args.plot, dpi=110)
+    say(f"wrote {args.plot}")
+
+
+def run(args) -> int:
+    import sys
+
+    from ..io.atomic import atomic_write_text  # here: --help imports no JAX
+    from ..io.config import spec_from_config
+    from ..io.errors_csv import joint_errors_csv
+    from ..io.rails_csv import read_rails_csv
+    from ..machine.build import build_machine
+    from ..machine.majda2012 import paper_variant
+
+    cfg = machine_config(args)
+    positions = _positions(args, cfg)
     check_tolerances(args)
     nx, ny = parse_mesh(args.mesh) if args.mesh else (None, None)
     rails = read_rails_csv(args.rails) if args.rails else paper_variant(args.variant)
@@ -161,15 +252,7 @@ def run(args) -> int:
     if args.rigid_table:
         machine = machine.with_rigid_table()
     say(f"solving the equilibrium at {len(positions)} positions ...")
-    # stored as an exported program in the cache folder: a second run does not trace it; it
-    # runs once per process, so compiled at XLA's optimisation level 0 (first run: compiling
-    # 2.6 -> ~1 s; the sweep's run time stays in the milliseconds)
-    sweep = cached_program(
-        joint_errors,
-        "machine.kinematics.joint_errors",
-        compiler_options={"xla_backend_optimization_level": 0},
-    )
-    je = sweep(machine, rails, np.asarray(positions, dtype=float))
+    je = _sweep(machine, rails, positions)
     ok = np.asarray(je.converged)
     if not ok.all():
         bad = ", ".join(f"{x * 1e3:g} mm" for x in positions[~ok])
@@ -180,71 +263,16 @@ def run(args) -> int:
         )
         return 3
     errs = je.user_units()
-    header = "position_mm,point,x_mm,y_mm," + ",".join(error_columns())
-    lines = [header]
-    xy = np.asarray(je.points_xy) * 1e3
-    for i, x in enumerate(positions):
-        for j, pname in enumerate(je.point_names):
-            vals = ",".join(f"{v + 0.0:.6f}" for v in errs[i, j])
-            lines.append(f"{x * 1e3:.6g},{pname},{xy[j, 0]:.6g},{xy[j, 1]:.6g},{vals}")
     if args.export_compensation and args.at not in je.point_names:
         raise ValueError(
             f"--at must be one of the points {', '.join(je.point_names)}, got {args.at!r}"
         )
-    atomic_write_text(args.out, "\n".join(lines) + "\n")
+    atomic_write_text(args.out, joint_errors_csv(positions, je.point_names, je.points_xy, errs))
     say(f"wrote {args.out}")
     if args.field_plot:
-        from ..machine.kinematics import error_field
-        from ..plotting.errors import plot_error_field
-
-        k = len(positions) - 1
-        if args.field_at is not None:
-            k = int(np.argmin(np.abs(positions * 1e3 - args.field_at)))
-        xy, field = error_field(machine, je, k)
-        fig = figure_of(
-            plot_error_field(
-                xy,
-                np.asarray(field) * 1e6,
-                f"{name}: errors over the table at x = {positions[k] * 1e3:g} mm",
-            )
-        )
-        atomic_savefig(fig, args.field_plot, dpi=100)
-        say(f"wrote {args.field_plot}")
+        _field_plot(args, name, machine, je, positions, say)
     if args.export_compensation:
-        from pathlib import Path
-
-        from ..studies.compensation import location_warnings
-        from ..studies.exports import export_compensation
-
-        what = f"rails {args.rails}" if args.rails else f"variant {args.variant}"
-        j = list(je.point_names).index(args.at)
-        files = export_compensation(
-            args.comp_format,
-            positions * 1e3,
-            np.asarray(je.errors)[:, j, :],
-            None,
-            x0_mm=args.x0_mm,
-            point=args.at,
-            source=f"simulated, {name}, {what}",
-        )
-        base = Path(args.export_compensation)
-        for suffix, text in files.items():
-            path = base if not suffix else base.with_name(base.stem + suffix)
-            atomic_write_text(path, text)
-            say(f"wrote {path}")
-        warnings = location_warnings(
-            errs, je.point_names, np.asarray(je.points_xy), args.at, args.tol_um, args.tol_urad
-        )
-        for w in warnings:
-            print(f"diffguide simulate: warning: {w}", file=sys.stderr)
+        _compensation(args, name, je, errs, positions, say)
     if args.plot:
-        from ..plotting.errors import plot_joint_errors
-
-        what = f"rails from {args.rails}" if args.rails else f"variant {args.variant}"
-        table = "rigid table" if args.rigid_table else "elastic table"
-        fig = figure_of(
-            plot_joint_errors(positions * 1e3, errs, je.point_names, f"{name}, {what}, {table}")
-        )
-        atomic_savefig(fig, args.plot, dpi=110)
-        say(f"wrote {args.plot}")
+        _plot(args, name, je, errs, positions, say)
     return 0

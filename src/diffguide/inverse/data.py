@@ -1,8 +1,10 @@
-"""The merged measurement data the identification works on (no file format here: reading,
-validation and merging of measurement files live in :mod:`diffguide.io.measurements`).
+"""The measurement data the identification works on (no file format here: reading and
+validation of measurement files live in :mod:`diffguide.io.measurements`, the merging of their
+readings in :mod:`.merge`).
 
-:class:`Measurements` holds one row per (position, point, quantity, instrument), SI units (m,
-rad): the merged value, its standard uncertainty, and what the merge saw (readings, reversal).
+:class:`Reading` is one validated reading (SI units); :class:`Measurements` holds one row per
+(position, point, quantity, instrument), SI units (m, rad): the merged value, its standard
+uncertainty, and what the merge saw (readings, reversal).
 """
 
 import dataclasses
@@ -20,6 +22,27 @@ def default_instrument(quantity: str) -> str:
     """``"level"`` for roll and pitch (EAX, EBX), ``"interferometer"`` otherwise (only an
     interferometer measures yaw and the linear errors)."""
     return "level" if quantity in ("EAX", "EBX") else "interferometer"
+
+
+@dataclasses.dataclass(frozen=True)
+class Reading:
+    """One validated row of a measurement file (SI units; ``line`` is its line number)."""
+
+    line: int
+    position: float
+    point: str
+    xy: tuple[float, float]
+    quantity: str
+    value: float
+    unit: str
+    sigma: float | None
+    run: str
+    direction: str  # "forward" or "backward"
+    instrument: str
+    z: float = 0.0  # height of the sensing point above the table top (m)
+    #: standard uncertainty of the rounding of the value as written (SI; ``q/√12``, ``q`` a unit
+    #: of its last digit; a differential pair's two roundings in quadrature; 0: unknown)
+    resolution: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True, repr=False)

@@ -1,4 +1,5 @@
-r"""Measured joint kinematic errors: read, validate and merge a measurement CSV.
+r"""Measured joint kinematic errors: read and validate a measurement CSV (the merging of the
+readings: :mod:`diffguide.inverse.merge`).
 
 File format (UTF-8, one header line; blank lines and lines starting with ``#`` are skipped; the
 separator is ``,``, ``;`` or tab, sniffed from the header line; with ``;`` or tab a decimal
@@ -23,7 +24,8 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
 - ``reference``: a differential level pair's reference level reading (in ``unit``): the reading
   used is ``value − reference`` (measuring minus reference level); a channel has it on every
   row or on none (an empty cell among paired rows is an error, not a reference of 0). Its noise
-  is not added to the default σ: with enough runs the pooled scatter (step 3) includes it.
+  is not added to the default σ: with enough runs the pooled scatter
+  (:mod:`diffguide.inverse.merge`, step 3) includes it.
 - any other column (temperature, ...) is ignored and reported as a note, unless its name is
   close to one of the above (a typo: an error).
 - ``instrument``: ``level`` or ``interferometer``. Default: ``level`` for roll and pitch
@@ -37,52 +39,11 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
   wrote them, in ``unit`` (≥ 0; empty: the unit of the last digit written, as by default; 0:
   unknown, no rounding floor).
   ``diffguide import`` writes it, so that a file converted to 6 decimals keeps the original
-  rounding (the floor of step 3 below).
+  rounding (the floor of :mod:`diffguide.inverse.merge`, step 3).
 
-Merging (what a metrologist does with ISO 230-2 style runs), per channel = (point, quantity,
-instrument) — so a level and an interferometer at one point are two channels, each with its own
-zero — and position:
-
-0. gross outliers are set aside: within each direction at a position, with at least
-   :data:`MIN_RUNS_FOR_OUTLIERS` runs, a reading further than :data:`OUTLIER_Z` robust standard
-   deviations from the median of the other readings (the scale: 1.4826 × the median of that
-   same distance over the channel) is not used, and reported (:attr:`Measurements.rejected`);
-1. the readings of each direction are averaged over the runs;
-2. the value is the mean of the forward and backward means (so unequal run counts do not bias it;
-   the reversal value, forward − backward, is kept for the report);
-3. the standard uncertainty of one reading is, in this order: the ``sigma`` column; else the
-   repeatability from the scatter — the pooled within-direction standard deviation over *all*
-   positions of the channel, when it has at least :data:`MIN_SCATTER_DOF` degrees of freedom (a
-   per-position scatter from five runs would be too noisy: its inverse square biases χ² by
-   ν/(ν−2)), but never below the channel's *floor* (below); else the instrument default
-   (:data:`DEFAULT_SIGMA`: 4 µm/m for levels, 2 µm/m for interferometers, 1 µm for linear
-   interferometer optics);
-
-   the floor is the larger of (a) the rounding of the written readings — half a unit of the last
-   digit written, ``q/2``, uniform: ``q/√12`` (GUM F.2.2.1), ``q`` the finest step among the
-   channel's readings (a writer that strips trailing zeros writes some readings coarser), in
-   quadrature for a differential pair — and (b) :data:`SCATTER_FLOOR_FRACTION` (1/10) of the
-   instrument default: 0.4 µm/m for a level, 0.2 µm/m for angular and 0.1 µm for linear
-   interferometer optics, about the resolution class of these instruments and finer than any
-   repeatability a machine tool's axis shows over runs. A smaller pooled scatter (runs that agree
-   to rounding, or a resolution coarser than the file shows) is not a repeatability: it would
-   give the channel a weight the data do not have. The rows are then marked ``"floor"`` in
-   :attr:`Measurements.sigma_source` and a note names the channel;
-4. the merged value's σ follows from step 2: ``σ_m² = ¼ (σ²/n_f + σ²/n_b)`` (``σ²/n`` with one
-   direction) — except where a channel's runs are **identical at (nearly) every position**: in
-   :data:`COPIES_FRACTION` (80 %) or more of its (position, direction) groups of more than one
-   reading (copies of one
-   run, perhaps with a reading edited, or a display coarser than the noise): their mean is no
-   better than one reading and they say nothing of the repeatability, so each direction counts
-   as one reading (``n = 1``) with the ``sigma`` column or else the instrument default (never
-   below the readings' rounding); the rows' source then includes ``copies``
-   (``"copies+default"``, ``"column+copies"``) and a note names the channel. (Copying one noisy
-   run of the bundled data's yaw five times gave, with the floor, χ²/dof 1.9, no convergence
-   and rails 5.6 µm off; merged as one run the fit is as good as with the real runs. Before the
-   80 % rule, copies with one reading changed took the floor branch: 10–30× the weight of exact
-   copies, for the same information.) Real runs agree exactly at a position only when their
-   noise is below the display step; at 80 % of the positions it is well below it, and the
-   rounding, which the runs share, then dominates the mean's error.
+The readings are merged per channel and position by
+:func:`diffguide.inverse.merge.merge_readings` (outliers, runs, directions, σ of one reading and
+its floors); :func:`read_measurements` reads and merges in one call.
 
 Every row is validated; a bad row raises one ``ValueError`` ``"FILE:LINE: field 'f': ... (allowed
 ...)"``. Values are converted to SI (m, rad).
@@ -94,12 +55,20 @@ import io
 import math
 import os
 import re
-from collections import defaultdict
-
-import numpy as np
 
 from ..inverse.data import LINEAR, QUANTITIES, Measurements
+from ..inverse.data import Reading as Reading
 from ..inverse.data import default_instrument as _default_instrument
+from ..inverse.merge import COPIES_FRACTION as COPIES_FRACTION
+from ..inverse.merge import DEFAULT_SIGMA as DEFAULT_SIGMA
+from ..inverse.merge import MIN_RUNS_FOR_OUTLIERS as MIN_RUNS_FOR_OUTLIERS
+from ..inverse.merge import MIN_SCATTER_DOF as MIN_SCATTER_DOF
+from ..inverse.merge import OUTLIER_Z as OUTLIER_Z
+from ..inverse.merge import SCATTER_FLOOR_FRACTION as SCATTER_FLOOR_FRACTION
+from ..inverse.merge import leave_one_out_deviation as leave_one_out_deviation
+from ..inverse.merge import merge_readings as merge_readings
+from ..inverse.merge import quantity_kind as _kind
+from ..inverse.merge import user_unit as _user_unit
 from .csvtable import decimal_point as decimal_point
 from .csvtable import iter_rows
 from .csvtable import read_text as read_text
@@ -119,22 +88,6 @@ UNIT_SPELLINGS = {"µ": "µm", "micron": "µm", "microns": "µm", "mic": "µm", 
                   "µradian": "µrad", "sec": "arcsec", '"': "arcsec", "min": "arcmin",
                   "'": "arcmin", "degree": "deg", "degrees": "deg", "mm/1000mm": "mm/m"}
 INSTRUMENTS = ("level", "interferometer")
-#: Repeatability of one reading when the file gives no sigma and there are too few runs (SI).
-DEFAULT_SIGMA = {("level", "angular"): 4e-6, ("interferometer", "angular"): 2e-6,
-                 ("interferometer", "linear"): 1e-6}
-#: Degrees of freedom a channel's pooled scatter needs before it replaces the default σ.
-MIN_SCATTER_DOF = 20
-#: A channel whose runs are identical at this fraction of the positions read more than once (or
-#: more) is merged as copies of one run (module docstring, step 4).
-COPIES_FRACTION = 0.8
-#: The pooled scatter's floor, as a fraction of :data:`DEFAULT_SIGMA` (module docstring, step 3;
-#: the rounding of the written readings is the other floor).
-SCATTER_FLOOR_FRACTION = 0.1
-#: Readings per direction and position needed before a reading can be called an outlier.
-MIN_RUNS_FOR_OUTLIERS = 3
-#: Distance from the median of the other readings (robust σ) beyond which a reading is an outlier.
-OUTLIER_Z = 6.0
-
 REQUIRED = ("position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit")
 OPTIONAL = ("sigma", "run", "direction", "instrument", "z_mm", "reference", "resolution")
 _FORWARD = ("forward", "fwd", "f", "+", "+1", "1", "up", "positive", "pos")
@@ -146,27 +99,6 @@ _BACKWARD = ("backward", "bwd", "b", "reverse", "rev", "r", "-", "-1", "down", "
 VALUE_LIMIT = {"angular": 1e-2, "linear": 1e-2}
 #: Field separators recognised (the header line decides: tab, then ';', else ',').
 DELIMITERS = ("\t", ";", ",")
-
-
-@dataclasses.dataclass(frozen=True)
-class Reading:
-    """One validated row of the file (SI units; ``line`` is its line number)."""
-
-    line: int
-    position: float
-    point: str
-    xy: tuple[float, float]
-    quantity: str
-    value: float
-    unit: str
-    sigma: float | None
-    run: str
-    direction: str  # "forward" or "backward"
-    instrument: str
-    z: float = 0.0  # height of the sensing point above the table top (m)
-    #: standard uncertainty of the rounding of the value as written (SI; ``q/√12``, ``q`` a unit
-    #: of its last digit; a differential pair's two roundings in quadrature; 0: unknown)
-    resolution: float = 0.0
 
 
 class _RowError(ValueError):
@@ -385,215 +317,6 @@ def _header_line(text: str) -> int:
         if line.strip() and not line.strip().startswith("#"):
             return number
     return 1
-
-
-def _reject_outliers(groups) -> set[int]:
-    """``id``s of gross outliers (module docstring, step 0). The statistic of a reading is its
-    distance from the median of the *other* readings of its direction at that position; its
-    robust scale, pooled over the channel, is 1.4826 × the median of the same statistic, so the
-    ratio is a standard normal deviate for clean data whatever the run count."""
-    dev = defaultdict(list)
-    stats = []  # (channel, rows, statistics) of every group with enough runs
-    for (p, q, inst, _), dirs in groups.items():
-        for rows in dirs.values():
-            if len(rows) >= MIN_RUNS_FOR_OUTLIERS:
-                d = leave_one_out_deviation(np.array([r.value for r in rows]))
-                dev[(p, q, inst)].append(d)
-                stats.append(((p, q, inst), rows, d))
-    scale = {k: 1.4826 * float(np.median(np.concatenate(d))) for k, d in dev.items()
-             if sum(map(len, d)) >= 10}
-    out = set()
-    for key, rows, d in stats:
-        sc = scale.get(key)
-        if sc:
-            out.update(id(r) for r, dk in zip(rows, d) if dk > OUTLIER_Z * sc)
-    return out
-
-
-def leave_one_out_deviation(v) -> np.ndarray:
-    """``|v_k − median(v without v_k)|`` for every ``k``, without a median per ``k``: the median
-    of the other ``n − 1`` values is one order statistic of ``v`` (two, averaged, when ``n − 1``
-    is even), the ``j``-th of the others being the ``j``-th of ``v`` below ``v_k``'s rank and
-    the ``(j+1)``-th from it on."""
-    v = np.asarray(v, dtype=float)
-    n = v.size
-    order = np.argsort(v, kind="stable")
-    s = v[order]
-    rank = np.empty(n, dtype=int)
-    rank[order] = np.arange(n)
-
-    def others(j: int) -> np.ndarray:
-        return s[np.where(j < rank, j, j + 1)]
-
-    m = n - 1
-    med = others((m - 1) // 2) if m % 2 else 0.5 * (others(m // 2 - 1) + others(m // 2))
-    return np.abs(v - med)
-
-
-def _kind(quantity: str) -> str:
-    return "linear" if quantity in LINEAR else "angular"
-
-
-def _user_unit(quantity: str) -> str:
-    return "µm" if quantity in LINEAR else "µm/m"
-
-
-def merge_readings(readings, source: str = "<readings>",
-                   notes: list | None = None) -> Measurements:
-    """Merge runs and directions (see the module docstring) into :class:`Measurements`.
-
-    ``notes`` (a list) receives a line for every channel whose pooled scatter was raised to its
-    floor (step 3) and for every channel merged as copies of one run (step 4)."""
-    readings = tuple(readings)
-    if not readings:
-        raise ValueError(f"{source}: no measurements")
-    names, xy = [], []
-    for r in readings:
-        if r.point not in names:
-            names.append(r.point)
-            xy.append(r.xy)
-    # positions are grouped on a 1 µm grid (files often print 100.0 and 100.0001)
-    groups: dict[tuple, dict[str, list[Reading]]] = defaultdict(lambda: {"forward": [],
-                                                                         "backward": []})
-    for r in readings:
-        key = (names.index(r.point), QUANTITIES.index(r.quantity), r.instrument,
-               round(r.position * 1e6))
-        groups[key][r.direction].append(r)
-    rejected = _reject_outliers(groups)
-    if rejected:
-        for dirs in groups.values():
-            for d in dirs:
-                dirs[d] = [r for r in dirs[d] if id(r) not in rejected]
-    # repeatability of one reading per channel from the within-direction scatter
-    ss, dof = defaultdict(float), defaultdict(int)
-    repeated, same = defaultdict(int), defaultdict(int)  # positions read more than once; alike
-    for (p, q, inst, _), dirs in groups.items():
-        for rows in dirs.values():
-            if len(rows) > 1:
-                v = np.array([r.value for r in rows])
-                ss[(p, q, inst)] += float(np.sum((v - v.mean()) ** 2))
-                dof[(p, q, inst)] += len(rows) - 1
-                repeated[(p, q, inst)] += 1
-                same[(p, q, inst)] += int(np.ptp(v) == 0.0)
-    # runs identical at (nearly) every position: copies of one run (or a display coarser than
-    # the noise), which carry the information of one run — merged as one reading per direction
-    copies = {ch for ch in dof if same[ch] >= COPIES_FRACTION * repeated[ch]}
-    for p, q, inst in sorted(copies) if notes is not None else ():
-        quantity = QUANTITIES[q]
-        stated = any(r.sigma is not None for (pp, qq, ii, _), dirs in groups.items()
-                     if (pp, qq, ii) == (p, q, inst) for rows in dirs.values() for r in rows)
-        one = ("its sigma column" if stated else
-               f"the instrument's default {DEFAULT_SIGMA[(inst, _kind(quantity))] * 1e6:g} "
-               f"{_user_unit(quantity)} (or the readings' rounding, if coarser)")
-        where = ("every position read more than once" if same[(p, q, inst)] == repeated[
-            (p, q, inst)] else f"{same[(p, q, inst)]} of the {repeated[(p, q, inst)]} "
-            "position-and-direction groups read more than once")
-        notes.append(f"{source}: {quantity} at {names[p]} ({inst}): the runs are identical at "
-                     f"{where} (copies of one run, or a display coarser than the noise?): "
-                     f"merged as one run, σ of one reading {one}")
-    # the finest rounding step written in each channel (0: unknown)
-    res = {}
-    for (p, q, inst, _), dirs in groups.items():
-        for rows in dirs.values():
-            for r in rows:
-                if r.resolution > 0:
-                    res[(p, q, inst)] = min(res.get((p, q, inst), math.inf), r.resolution)
-    scatter, floored = {}, set()
-    for ch in sorted(dof):
-        if dof[ch] < MIN_SCATTER_DOF or ch in copies:
-            continue
-        p, q, inst = ch
-        quantity = QUANTITIES[q]
-        s = math.sqrt(ss[ch] / dof[ch])
-        floor = max(res.get(ch, 0.0),
-                    SCATTER_FLOOR_FRACTION * DEFAULT_SIGMA[(inst, _kind(quantity))])
-        if s < floor:
-            floored.add(ch)
-            if notes is not None:
-                u = _user_unit(quantity)
-                notes.append(
-                    f"{source}: {quantity} at {names[p]} ({inst}): the runs' pooled scatter "
-                    f"{s * 1e6:.3g} {u} ({dof[ch]} degrees of freedom) is below the floor "
-                    f"{floor * 1e6:.3g} {u} (the larger of the readings' rounding and "
-                    f"{SCATTER_FLOOR_FRACTION:g} × the instrument's default σ): identical runs? "
-                    "σ of one reading set to the floor"
-                )
-            s = floor
-        scatter[ch] = s
-    keys = sorted((k for k, d in groups.items() if d["forward"] or d["backward"]),
-                  key=lambda k: (k[0], k[1], k[2], k[3]))
-    cols = defaultdict(list)
-    row_of = {}
-    for k, key in enumerate(keys):
-        p, q, inst, _ = key
-        ch = (p, q, inst)
-        dirs = groups[key]
-        rows = dirs["forward"] + dirs["backward"]
-        zs = {round(r.z * 1e6) for r in rows}
-        if len(zs) > 1:
-            r0 = rows[-1]
-            raise ValueError(
-                f"{source}:{r0.line}: field 'z_mm': {names[p]} {QUANTITIES[q]} ({inst}) at "
-                f"{r0.position * 1e3:g} mm is read at several heights (allowed: one height per "
-                "point, quantity and instrument; use another point name)"
-            )
-        means, var = [], []
-        sources = set()
-        for d in ("forward", "backward"):
-            rs = dirs[d]
-            if not rs:
-                continue
-            n = len(rs)
-            means.append(float(np.mean([r.value for r in rs])))
-            sig = []
-            for r in rs:
-                if r.sigma is not None:
-                    sig.append(r.sigma)
-                    sources.add("column")
-                elif ch in scatter:
-                    sig.append(scatter[ch])
-                    sources.add("floor" if ch in floored else "scatter")
-                else:
-                    default = DEFAULT_SIGMA[(inst, _kind(QUANTITIES[q]))]
-                    sig.append(max(default, res.get(ch, 0.0)) if ch in copies else default)
-                    sources.add("default")
-            if ch in copies:  # one reading's worth: the mean of copies is no better than one
-                sources.add("copies")
-                var.append(float(np.mean(np.square(sig))))
-            else:
-                var.append(float(np.sum(np.square(sig))) / n**2)
-        value = float(np.mean(means))
-        sigma = math.sqrt(sum(var)) / len(var)  # > 0: every σ above is
-        cols["position"].append(rows[0].position)
-        cols["point"].append(p)
-        cols["quantity"].append(q)
-        cols["value"].append(value)
-        cols["sigma"].append(sigma)
-        cols["n"].append(len(rows))
-        cols["reversal"].append(means[0] - means[1] if len(means) == 2 else math.nan)
-        cols["instrument"].append(inst)
-        cols["source"].append("+".join(sorted(sources)))
-        cols["z"].append(rows[0].z)
-        for r in rows:
-            row_of[id(r)] = k
-    return Measurements(
-        point_names=tuple(names),
-        points_xy=np.array(xy, float),
-        position=np.array(cols["position"]),
-        point=np.array(cols["point"], int),
-        quantity=np.array(cols["quantity"], int),
-        value=np.array(cols["value"]),
-        sigma=np.array(cols["sigma"]),
-        n_readings=np.array(cols["n"], int),
-        reversal=np.array(cols["reversal"]),
-        instrument=tuple(cols["instrument"]),
-        sigma_source=tuple(cols["source"]),
-        z=np.array(cols["z"]),
-        readings=readings,
-        row_of_reading=np.array([row_of.get(id(r), -1) for r in readings], int),
-        rejected=tuple(sorted(r.line for r in readings if id(r) in rejected)),
-        source=source,
-    )
 
 
 def read_measurements(path: str | os.PathLike, x0_mm: float = 0.0,

@@ -203,6 +203,57 @@ def _pad(a: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([a, np.repeat(a[-1:], n - a.shape[0], axis=0)])
 
 
+def _corner_pairs(machine: Machine, corners):
+    """The pairs of ``corners`` (default :func:`default_corners`) whose roll differences are
+    reported, by name and by point index."""
+    names = machine.point_names
+    corners = default_corners(machine) if corners is None else tuple(corners)
+    bad = [c for c in corners if c not in names]
+    if bad:
+        raise ValueError(f"corners must be control points {names}, got {bad}")
+    pairs = tuple(itertools.combinations(corners, 2))
+    return pairs, tuple((names.index(a), names.index(b)) for a, b in pairs)
+
+
+def _batched_arrays(dyn, n: int):
+    """A stacked machine's arrays (host copies), each checked to have ``n`` samples."""
+    sizes = {np.shape(x)[0] for x in jax.tree_util.tree_leaves(dyn)}
+    if sizes != {n}:
+        raise ValueError(
+            f"with machine_batched, every array of machine needs a leading axis of "
+            f"len(rails) = {n}; got leading sizes {sorted(sizes)}"
+        )
+    return jax.tree_util.tree_map(np.asarray, dyn)
+
+
+def _placement(devices):
+    """The sample mesh over several devices (None for one) and a function putting a chunk's
+    array on them."""
+    mesh = jax.sharding.Mesh(np.array(devices), ("samples",)) if len(devices) > 1 else None
+    if mesh is not None:
+        place = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("samples"))
+        return mesh, lambda a: jax.device_put(a, place)
+    return mesh, lambda a: jax.device_put(a, devices[0])
+
+
+def _run_chunks(launch, starts, n, progress, t0):
+    """Every chunk's results (padding cut off), each next chunk queued before waiting for the
+    one before; and the seconds to the first chunk's results."""
+    parts: list[dict] = []
+    t_first = None
+    pending = launch(starts[0])
+    for k in range(len(starts)):
+        hi, out = pending
+        if k + 1 < len(starts):  # queue the next chunk before waiting for this one
+            pending = launch(starts[k + 1])
+        parts.append({key: np.asarray(val)[: hi - starts[k]] for key, val in out.items()})
+        if t_first is None:
+            t_first = time.perf_counter() - t0
+        if progress is not None:
+            progress(hi, n)
+    return parts, t_first
+
+
 def batched_sweep(
     machine: Machine,
     rails: RailBatch,
@@ -251,31 +302,13 @@ def batched_sweep(
     if positions.ndim != 1:
         raise ValueError(f"positions must be 1-D, got shape {positions.shape}")
     names = machine.point_names
-    corners = default_corners(machine) if corners is None else tuple(corners)
-    bad = [c for c in corners if c not in names]
-    if bad:
-        raise ValueError(f"corners must be control points {names}, got {bad}")
-    pairs = tuple(itertools.combinations(corners, 2))
-    pair_idx = tuple((names.index(a), names.index(b)) for a, b in pairs)
-
+    pairs, pair_idx = _corner_pairs(machine, corners)
     dyn, static = eqx.partition(machine, eqx.is_array_like)
     if machine_batched:
-        sizes = {np.shape(x)[0] for x in jax.tree_util.tree_leaves(dyn)}
-        if sizes != {n}:
-            raise ValueError(
-                f"with machine_batched, every array of machine needs a leading axis of "
-                f"len(rails) = {n}; got leading sizes {sorted(sizes)}"
-            )
-        dyn = jax.tree_util.tree_map(np.asarray, dyn)
-
+        dyn = _batched_arrays(dyn, n)
     n_dev = len(devices)
     chunk = int(-(-min(chunk_size, n) // n_dev) * n_dev)
-    mesh = jax.sharding.Mesh(np.array(devices), ("samples",)) if n_dev > 1 else None
-    if mesh is not None:
-        place = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("samples"))
-        put = lambda a: jax.device_put(a, place)  # noqa: E731
-    else:
-        put = lambda a: jax.device_put(a, devices[0])  # noqa: E731
+    mesh, put = _placement(devices)
 
     vertical = np.asarray(rails.vertical, dtype=float)
     horizontal = np.asarray(rails.horizontal, dtype=float)
@@ -304,20 +337,8 @@ def batched_sweep(
             )
         return hi, _chunk(m, v, h, pos_dev, xref_dev, **kw)  # asynchronous
 
-    parts: list[dict] = []
     t0 = time.perf_counter()
-    t_first = None
-    starts = list(range(0, n, chunk))
-    pending = launch(starts[0])
-    for k in range(len(starts)):
-        hi, out = pending
-        if k + 1 < len(starts):  # queue the next chunk before waiting for this one
-            pending = launch(starts[k + 1])
-        parts.append({key: np.asarray(val)[: hi - starts[k]] for key, val in out.items()})
-        if t_first is None:
-            t_first = time.perf_counter() - t0
-        if progress is not None:
-            progress(hi, n)
+    parts, t_first = _run_chunks(launch, list(range(0, n, chunk)), n, progress, t0)
     wall = time.perf_counter() - t0
     cat = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     rest = n - min(chunk, n)
