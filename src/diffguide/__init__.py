@@ -95,9 +95,6 @@ def __getattr__(name: str):
     """The public API on first use; ``diffguide.kinematics`` etc. (old flat modules,
     deprecated)."""
     if name in _LAZY:
-        from ._core.stack import check_stack
-
-        check_stack()  # a clear warning on a JAX version known to misbehave
         value = getattr(_import_module(_LAZY[name], __name__), name)
         globals()[name] = value
         _aliases.forget()  # the package's own imports of old names leave no trace for users

@@ -41,7 +41,7 @@ def _version() -> str:
     from .. import __version__
 
     deps = []
-    for dist in ("jax", "jaxlib", "equinox", "optimistix", "lineax"):
+    for dist in ("jax", "jaxlib", "equinox"):
         try:
             deps.append(f"{dist} {version(dist)}")
         except PackageNotFoundError:

@@ -228,9 +228,6 @@ def prepare_runtime(args) -> None:
       skips tracing the fit's linearisation and the sweep).
     - float64 (micrometres on metre-scale geometry need it).
     """
-    from .._core.stack import check_stack
-
-    check_stack()
     if "equinox" not in sys.modules:
         os.environ.setdefault("EQX_ON_ERROR", "nan")
     jax_was_loaded = "jax" in sys.modules
