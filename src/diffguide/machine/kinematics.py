@@ -47,8 +47,8 @@ class JointErrors(eqx.Module):
         positions: table positions ``x`` (m). x_ref: reference position (m).
         point_names: control-point names. points_xy: their (x, y) on the table (m).
         errors: ``(n_pos, n_points, 6)``: EXX, EYX, EZX (m), EAX, EBX, ECX (rad).
-        result: result code (:class:`~diffguide._core.result.RESULTS`) per position (the reference position's failure is
-            reported at every position).
+        result: result code (:class:`~diffguide._core.result.RESULTS`) per position (the
+            reference position's failure is reported at every position).
         interface: the table's interface DOF at each position (m, rad).
         interface_ref: the same at the reference position.
     """
