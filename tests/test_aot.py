@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from diffguide._core import aot
+from diffguide._core.caches import Caches
 
 pytest.importorskip("flatbuffers")  # jax.export's serialisation (without it: no export dir)
 TRACES = {"n": 0}
@@ -42,10 +43,14 @@ _model = eqx.filter_jit(_raw)
 
 
 @pytest.fixture
-def folder(tmp_path):
-    aot.set_export_dir(tmp_path / "exports")
-    yield tmp_path / "exports"
-    aot.set_export_dir(None)
+def caches(tmp_path):
+    with Caches(exports=tmp_path / "exports") as c:
+        yield c
+
+
+@pytest.fixture
+def folder(caches):
+    return caches.exports
 
 
 def _spring(label="a", power=3):
@@ -59,13 +64,14 @@ def _check_same(a, b):
         np.testing.assert_array_equal(np.asarray(u), np.asarray(v))
 
 
-def test_round_trip_identical_and_not_traced_again(folder):
+def test_round_trip_identical_and_not_traced_again(caches, folder):
     x = jnp.linspace(-1.0, 1.0, 7)
     ref = _model(_spring(), x)
-    stats0 = dict(aot.stats)
+    stats = caches.export_stats
+    assert stats == {"hits": 0, "exports": 0, "fallbacks": 0, "calls": 0}
     first = aot.cached_program(_model, "test.model")
     _check_same(first(_spring(), x), ref)
-    assert aot.stats["exports"] == stats0["exports"] + 1
+    assert stats["exports"] == 1
     assert len(list(folder.glob("*.jaxexport"))) == 1 and len(list(folder.glob("*.out"))) == 1
     # a new wrapper of a freshly jitted function (a new process): read from disk, not traced
     y = 2.0 * x - 0.3
@@ -74,9 +80,9 @@ def test_round_trip_identical_and_not_traced_again(folder):
     second = aot.cached_program(eqx.filter_jit(_raw), "test.model")
     _check_same(second(_spring(), y), expected)
     assert TRACES["n"] == traces
-    assert aot.stats["hits"] == stats0["hits"] + 1
+    assert stats["hits"] == 1
     second(_spring(), x)  # in-process: neither disk nor tracing
-    assert aot.stats["hits"] == stats0["hits"] + 1 and TRACES["n"] == traces
+    assert stats["hits"] == 1 and TRACES["n"] == traces
 
 
 def test_changed_keys_miss(folder, monkeypatch):
@@ -100,7 +106,7 @@ def test_changed_keys_miss(folder, monkeypatch):
     assert len(list(folder.glob("*.jaxexport"))) == 2
 
 
-def test_damaged_file_and_traced_or_no_folder_fall_back(folder, tmp_path):
+def test_damaged_file_and_traced_or_no_folder_fall_back(caches, folder):
     x = jnp.linspace(-1.0, 1.0, 5)
     aot.cached_program(_model, "test.model")(_spring(), x)
     (path,) = folder.glob("*.jaxexport")
@@ -111,10 +117,29 @@ def test_damaged_file_and_traced_or_no_folder_fall_back(folder, tmp_path):
     wrapped = aot.cached_program(_model, "test.model")
     g = jax.grad(lambda s: wrapped(_spring(), x * s)[0].energy)(1.0)
     assert np.isfinite(float(g))
-    aot.set_export_dir(None)
+    assert caches.export_stats["fallbacks"] >= 1
     n = len(list(folder.iterdir()))
-    aot.cached_program(_model, "test.model")(_spring(), x + 1.0)
+    with Caches():  # caches without an exports folder, inside the active ones
+        aot.cached_program(_model, "test.model")(_spring(), x + 1.0)
     assert len(list(folder.iterdir())) == n
+
+
+def test_nothing_is_stored_without_active_caches(tmp_path):
+    """The library's default: no caches, nothing written; the caches are scoped to their block
+    (also when it ends with an exception)."""
+    from diffguide._core.caches import active_caches
+
+    x = jnp.linspace(-1.0, 1.0, 5)
+    assert active_caches() is None and aot.export_dir() is None
+    c = Caches(exports=tmp_path / "exports")
+    with pytest.raises(RuntimeError):
+        with c:
+            assert active_caches() is c and aot.export_dir() == tmp_path / "exports"
+            raise RuntimeError
+    assert active_caches() is None
+    _check_same(aot.cached_program(_model, "test.model")(_spring(), x), _model(_spring(), x))
+    assert not (tmp_path / "exports").exists()
+    assert c.export_stats["calls"] == 0
 
 
 _LAPACK = r"""
@@ -123,7 +148,8 @@ os.environ["EQX_ON_ERROR"] = "nan"
 import jax, jax.numpy as jnp, equinox as eqx
 jax.config.update("jax_enable_x64", True)
 from diffguide._core import aot
-aot.set_export_dir(sys.argv[1])
+from diffguide._core.caches import Caches
+caches = Caches(exports=sys.argv[1])
 
 @eqx.filter_jit
 def f(A, b):
@@ -131,8 +157,10 @@ def f(A, b):
     return jax.scipy.linalg.cho_solve((L, True), b), jnp.linalg.solve(A + 4 * jnp.eye(4), b)
 
 A = jnp.arange(16.0).reshape(4, 4) / 10
-x, y = aot.cached_program(f, "test.lapack")(A, jnp.ones(4))
-print(aot.stats["hits"], aot.stats["exports"], repr(float(x[0])), repr(float(y[1])))
+with caches:
+    x, y = aot.cached_program(f, "test.lapack")(A, jnp.ones(4))
+stats = caches.export_stats
+print(stats["hits"], stats["exports"], repr(float(x[0])), repr(float(y[1])))
 """
 
 

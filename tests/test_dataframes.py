@@ -4,12 +4,12 @@ import types
 
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 import pytest
 
 pd = pytest.importorskip("pandas")
 
 from diffguide.inverse.fit import RailFit  # noqa: E402
+from diffguide.machine import RESULTS  # noqa: E402
 from diffguide.machine.kinematics import ERROR_NAMES, JointErrors  # noqa: E402
 
 
@@ -22,7 +22,7 @@ def test_joint_errors_to_dataframe():
         point_names=("A", "B"),
         points_xy=jnp.array([[0.1, 0.2], [-0.3, 0.0]]),
         errors=jnp.asarray(err),
-        result=optx.RESULTS.successful,
+        result=RESULTS.successful,
         interface=jnp.zeros((3, 4)),
         interface_ref=jnp.zeros(4),
     )

@@ -34,3 +34,26 @@ def test_table_command_writes_plot_and_csv(tmp_path, capsys):
 def test_table_command_rejects_bad_mesh(capsys):
     assert main(["table", "--mesh", "0x5"]) == 2
     assert "--mesh" in capsys.readouterr().err
+
+
+def test_table_command_caches_its_table_only_when_asked_and_only_while_it_runs(tmp_path):
+    """``--cache-dir``: the condensed table is written to ``<dir>/tables`` and read back by the
+    next run (the same numbers); the caches are the command's own (none active afterwards), and
+    ``--no-cache`` writes nothing."""
+    from diffguide._core.caches import active_caches
+
+    cache = tmp_path / "cache"
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"nodes{k}.csv"
+        args = ["table", "--mesh", "6x3", "--out", str(out), "--quiet"]
+        assert main([*args, "--cache-dir", str(cache)]) == 0
+        assert active_caches() is None
+        outs.append(out.read_text())
+        assert len(list((cache / "tables").glob("*.npz"))) == 1
+    assert outs[0] == outs[1]
+    other = tmp_path / "other"
+    out = tmp_path / "nodes_nc.csv"
+    assert main(["table", "--mesh", "6x3", "--out", str(out), "--quiet",
+                 "--cache-dir", str(other), "--no-cache"]) == 0
+    assert out.read_text() == outs[0] and not list(other.rglob("*.npz"))

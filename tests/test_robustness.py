@@ -84,17 +84,17 @@ def test_non_convergence_is_reported_per_position(machine):
 
 def test_cli_exits_non_zero_and_writes_nothing_on_failure(tmp_path, capsys, monkeypatch):
     import equinox as eqx
-    import optimistix as optx
 
     import diffguide.machine.kinematics as kin
     from diffguide.cli import main
+    from diffguide.machine import RESULTS
 
     real = kin.joint_errors
 
     def failing(machine, rails, positions, x_ref=0.0):
         """The real sweep, with the second position's result code set to a failure."""
         je = real(machine, rails, positions, x_ref)
-        code = optx.RESULTS.nonlinear_max_steps_reached._value
+        code = RESULTS.nonlinear_max_steps_reached._value
         bad = jnp.arange(je.positions.shape[0]) == 1
         failed = jax.tree_util.tree_map(lambda v: jnp.where(bad, code, v), je.result)
         return eqx.tree_at(lambda j: j.result, je, failed)

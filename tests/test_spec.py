@@ -8,7 +8,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 import pytest
 
 from diffguide import presets
@@ -16,6 +15,7 @@ from diffguide._core.rigid import rigid_transfer, skew, transfer
 from diffguide.guideway.rails import SplineRail, knot_centres, knot_grid
 from diffguide.io.config import config_from_spec, default_config, dump_config, spec_from_config
 from diffguide.io.rails_csv import rails_at, read_rails_csv, read_rails_samples
+from diffguide.machine import RESULTS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -108,10 +108,10 @@ def test_solver_result_codes_and_throw():
 
     c = majda2012_carriage()
     ok = solve_carriage(c, jnp.array([0.0, 0.0, -500.0, 0.0, 0.0, 0.0]), throw=True)
-    assert ok.result == optx.RESULTS.successful
+    assert ok.result == RESULTS.successful
     few = solve_carriage(c, jnp.array([0.0, 0.0, -500.0, 0.0, 0.0, 0.0]), max_steps=1)
-    assert few.result == optx.RESULTS.nonlinear_max_steps_reached
+    assert few.result == RESULTS.nonlinear_max_steps_reached
     bad = solve_carriage(c, jnp.array([0.0, 0.0, jnp.nan, 0.0, 0.0, 0.0]))
-    assert bad.result == optx.RESULTS.nonfinite
+    assert bad.result == RESULTS.nonfinite
     with pytest.raises(Exception, match="steps"):
         solve_carriage(c, jnp.array([0.0, 0.0, -500.0, 0.0, 0.0, 0.0]), max_steps=1, throw=True)

@@ -1,11 +1,11 @@
-"""The numerical stack: the version guard, and the fit Jacobian reproduced by fresh processes.
+"""The numerical stack: the fit Jacobian is reproduced by fresh processes.
 
-jax/jaxlib 0.10.2 returned a wrong ``jacfwd`` through the hand-written implicit solve in about
-one of four fresh compilations on a 2-core CPU (and sometimes deadlocked); 0.9.2 was clean. A
-wrong Jacobian is silent, so this test compiles the full fit Jacobian in two fresh processes and
-requires them to agree (test_inverse.py compares it with central differences); the second
-process compiles with the command line's XLA flags for the installed jaxlib
-(``cli._common.XLA_CPU_FLAGS``), so these are held to the same Jacobian.
+A wrong Jacobian is silent (a wrong fit), and a compiler that miscompiles the ``jacfwd`` through
+the implicit solve now and then would show as two fresh compilations that disagree. So this test
+compiles the full fit Jacobian in two fresh processes and requires them to agree
+(test_inverse.py compares it with central differences); the second process compiles with the
+command line's XLA flags for the installed jaxlib (``cli._common.XLA_CPU_FLAGS``), so these are
+held to the same Jacobian.
 """
 
 import json
@@ -13,12 +13,9 @@ import os
 import pathlib
 import subprocess
 import sys
-import warnings
 
 import numpy as np
-import pytest
 
-from diffguide._core import stack
 from diffguide.cli._common import XLA_CPU_FLAGS
 
 _JACOBIAN = r"""
@@ -60,35 +57,3 @@ def test_fit_jacobian_is_the_same_in_two_fresh_processes(tmp_path):
     scale = np.abs(jacs[0]).max()
     assert scale > 0
     np.testing.assert_allclose(jacs[1], jacs[0], rtol=0, atol=1e-9 * scale)
-
-
-@pytest.mark.parametrize(
-    "versions, bad",
-    [
-        ({"jax": "0.9.2", "jaxlib": "0.9.2"}, False),
-        ({"jax": "0.10.2", "jaxlib": "0.10.2"}, True),
-        ({"jax": "0.9.2", "jaxlib": "0.10.2"}, True),
-        ({"jax": "0.11.0", "jaxlib": "0.11.0"}, False),
-    ],
-)
-def test_known_bad_versions_are_named(versions, bad):
-    problems = stack.known_problems(versions)
-    assert bool(problems) == bad
-    if bad:
-        assert "0.10.2" in problems[0] and "jacfwd" in problems[0]
-
-
-def test_guard_warns_once_and_can_be_silenced(monkeypatch):
-    monkeypatch.setattr(stack, "installed_versions", lambda: {"jax": "0.10.2", "jaxlib": "0.10.2"})
-    monkeypatch.setattr(stack, "_warned", False)
-    monkeypatch.delenv("DIFFGUIDE_ALLOW_BAD_JAX", raising=False)
-    with pytest.warns(RuntimeWarning, match="0.10.2"):
-        stack.check_stack()
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        stack.check_stack()  # once per process
-    monkeypatch.setattr(stack, "_warned", False)
-    monkeypatch.setenv("DIFFGUIDE_ALLOW_BAD_JAX", "1")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        stack.check_stack()

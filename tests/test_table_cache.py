@@ -9,19 +9,23 @@ import jax
 import numpy as np
 import pytest
 
+from diffguide._core.caches import Caches
 from diffguide.fe import Rib
 from diffguide.fe import cache as table_cache
-from diffguide.fe.cache import set_table_cache_dir
 from diffguide.machine.majda2012 import majda2012_table
 
 FIELDS = ("K", "f", "R", "r0", "node_modes", "node_u0", "ref_points", "nodes")
 
 
 @pytest.fixture
-def folder(tmp_path):
-    set_table_cache_dir(tmp_path / "tables")
-    yield tmp_path / "tables"
-    set_table_cache_dir(None)
+def caches(tmp_path):
+    with Caches(tables=tmp_path / "tables") as c:
+        yield c
+
+
+@pytest.fixture
+def folder(caches):
+    return caches.tables
 
 
 def _equal(a, b):
@@ -32,16 +36,16 @@ def _files(folder):
     return sorted(folder.glob("*.npz")) if folder.exists() else []
 
 
-def test_cached_table_equals_fresh_and_changes_miss(folder):
+def test_cached_table_equals_fresh_and_changes_miss(caches, folder):
     tm = majda2012_table(6, 3)
-    set_table_cache_dir(None)
-    fresh = tm.condense()  # no cache: computed
-    set_table_cache_dir(folder)
+    with Caches():  # caches without a table folder: computed
+        fresh = tm.condense()
+    assert not _files(folder)
     first = tm.condense()  # computed and written
     assert len(_files(folder)) == 1
-    hits = table_cache.stats["hits"]
+    assert caches.table_stats == {"hits": 0, "misses": 1, "writes": 1}
     again = tm.condense()  # read back
-    assert table_cache.stats["hits"] == hits + 1
+    assert caches.table_stats["hits"] == 1
     assert _equal(fresh, first) and _equal(fresh, again)
     # a changed thickness, material, mesh, rib, gravity or method: another key
     variants = [
@@ -79,11 +83,9 @@ def test_damaged_file_is_ignored_and_rewritten(folder):
 
 
 def test_no_folder_no_files_and_traced_inputs_bypass(tmp_path):
-    set_table_cache_dir(None)
-    majda2012_table(6, 3).condense()
+    majda2012_table(6, 3).condense()  # no active caches (the library default): nothing written
     assert not list(tmp_path.rglob("*.npz"))
-    set_table_cache_dir(tmp_path)
-    try:
+    with Caches(tables=tmp_path) as caches:
         tm = majda2012_table(6, 3)
 
         def k00(t):
@@ -91,5 +93,4 @@ def test_no_folder_no_files_and_traced_inputs_bypass(tmp_path):
 
         g = jax.grad(k00)(0.04)  # traced thickness: no lookup, no write
         assert np.isfinite(g) and not list(tmp_path.rglob("*.npz"))
-    finally:
-        set_table_cache_dir(None)
+    assert caches.table_stats == {"hits": 0, "misses": 0, "writes": 0}

@@ -91,9 +91,6 @@ def __getattr__(name: str):
     """The public API (:data:`_LAZY`) and the subpackages (:data:`_SUBMODULES`), imported on
     first use."""
     if name in _LAZY:
-        from ._core.stack import check_stack
-
-        check_stack()  # a clear warning on a JAX version known to misbehave
         value = getattr(_import_module(_LAZY[name], __name__), name)
         globals()[name] = value
         return value

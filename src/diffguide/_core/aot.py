@@ -3,8 +3,9 @@
 JAX's persistent compilation cache skips XLA's compilation on a second run, but not JAX's own
 tracing and lowering, which for the fit's linearisation (a ``jacfwd`` through the implicit
 equilibrium, vmapped over the positions) costs seconds. :class:`cached_program` wraps a function
-of pytrees (equinox modules, arrays, static fields) so that, with a folder set
-(:func:`set_export_dir`; the command line sets ``<cache dir>/exports``):
+of pytrees (equinox modules, arrays, static fields) so that, called within
+``with Caches(exports=folder):`` (:class:`diffguide._core.caches.Caches`; the command line
+activates ``<cache dir>/exports`` for each command):
 
 - **key**: SHA-256 of the function's name, the structure of its arguments (the pytree
   definition with every static field and non-array leaf, by ``repr``), every array argument's
@@ -22,10 +23,11 @@ of pytrees (equinox modules, arrays, static fields) so that, with a folder set
 - **robust**: a missing, unreadable or foreign file, a program that cannot be exported (e.g.
   one holding host callbacks: equinox's checks with ``EQX_ON_ERROR=raise``) or deserialised,
   and any call from inside another trace fall back to calling the function itself; every
-  fallback is counted in :data:`stats`.
+  fallback is counted in the active caches' ``export_stats``.
 
-Without a folder (the library's default), or without the ``flatbuffers`` package (which
-``jax.export`` needs to serialise), the wrapper calls the function unchanged. The
+Without active caches or their ``exports`` folder (the library's default), or without the
+``flatbuffers`` package (which ``jax.export`` needs to serialise), the wrapper calls the
+function unchanged. The
 results of the stored program are those of the function (same StableHLO; compared in
 ``tests/test_aot.py``). As with JAX's compilation cache, the folder holds code that is run: it
 must be the user's own.
@@ -34,7 +36,6 @@ must be the user's own.
 import functools
 import hashlib
 import importlib.util
-import os
 import pickle
 from collections.abc import Callable
 from pathlib import Path
@@ -44,29 +45,28 @@ import jax
 
 from .atomic import atomic_write
 from .cachedir import touch
+from .caches import Caches, active_caches
+from .compat import cpu_lapack_ready, eqx_on_error
 from .fingerprint import code_fingerprint
 
 #: Bumped when the file layout changes.
 FORMAT = 1
-_dir: Path | None = None
-_code_hash: str | None = None
-#: Counters in this process: ``hits`` (read from disk), ``exports`` (traced and written),
-#: ``fallbacks`` (the function called directly although a folder is set), ``calls``.
-stats = {"hits": 0, "exports": 0, "fallbacks": 0, "calls": 0}
+_code_hash: str | None = None  # the source hash, computed once per process
 
 
-def set_export_dir(path: str | os.PathLike | None) -> None:
-    """Use ``path`` (created when needed) for exported programs; ``None`` switches it off (and
-    so does a missing ``flatbuffers`` package: ``jax.export`` cannot serialise without it)."""
-    global _dir
-    if path is not None and importlib.util.find_spec("flatbuffers") is None:
-        path = None
-    _dir = None if path is None else Path(path).expanduser()
+@functools.cache
+def _can_serialise() -> bool:
+    """``jax.export`` serialises with the ``flatbuffers`` package (jax does not require it)."""
+    return importlib.util.find_spec("flatbuffers") is not None
 
 
-def export_dir() -> Path | None:
-    """The folder in use, or ``None``."""
-    return _dir
+def export_dir(caches: Caches | None = None) -> Path | None:
+    """The folder of stored programs of ``caches`` (default: the active ones), or ``None``
+    (none, or no ``flatbuffers`` to serialise with)."""
+    caches = active_caches() if caches is None else caches
+    if caches is None or caches.exports is None or not _can_serialise():
+        return None
+    return caches.exports
 
 
 def _code_version() -> str:
@@ -78,16 +78,12 @@ def _code_version() -> str:
 
 
 def _environment() -> str:
-    try:
-        from equinox._config import EQX_ON_ERROR
-    except ImportError:  # pragma: no cover
-        EQX_ON_ERROR = os.environ.get("EQX_ON_ERROR", "")
     return "|".join(
         (
             _code_version(),
             jax.default_backend(),
             str(jax.config.read("jax_enable_x64")),
-            str(EQX_ON_ERROR),
+            eqx_on_error(),
         )
     )
 
@@ -116,29 +112,14 @@ def program_key(name: str, args: tuple, parts=None) -> str | None:
     return h.hexdigest()
 
 
-def _cpu_kernels_ready() -> bool:
-    """Load jaxlib's CPU LAPACK kernels (their BLAS/LAPACK function pointers). JAX does it while
-    lowering a LAPACK operation; a deserialised program is not lowered, and running its LAPACK
-    custom calls without it crashed the process (segmentation fault, jax 0.9.2). ``False`` when
-    it cannot be done (then nothing is read from disk)."""
-    if jax.default_backend() != "cpu":
-        return True
-    try:
-        from jax._src.lib import lapack
-
-        lapack._lapack.initialize()
-    except Exception:  # pragma: no cover - another jaxlib layout: do not risk it
-        return False
-    return True
-
-
 class _Array:
     """Marks where an output array goes in the stored output structure."""
 
 
 class cached_program:
     """``fn`` (a function of pytrees returning a pytree of arrays and static data), stored and
-    reloaded as an exported program when a folder is set (module docstring).
+    reloaded as an exported program within active caches with an ``exports`` folder (module
+    docstring).
 
     Arguments:
         fn: the function (typically already ``eqx.filter_jit``-ed: it is what runs without a
@@ -154,12 +135,15 @@ class cached_program:
         self.fn = fn
         self.name = name
         self.compiler_options = dict(compiler_options or {})
-        self._programs: dict[str, tuple[Callable, object] | None] = {}
+        self._programs: dict[tuple[Path, str], tuple[Callable, object] | None] = {}
         self._keys: dict = {}  # in-process: hashable call signature -> key
 
     def __call__(self, *args):
-        if _dir is None:
+        caches = active_caches()
+        folder = export_dir(caches)
+        if folder is None:
             return self.fn(*args)
+        stats = caches.export_stats
         stats["calls"] += 1
         parts = _parts(args)
         leaves = parts[0]
@@ -168,7 +152,7 @@ class cached_program:
             return self.fn(*args)
         try:  # the string key (repr of every static field) costs ms: once per signature
             sig = (
-                _dir,
+                folder,
                 parts[1],
                 parts[3],
                 tuple(parts[2]),
@@ -182,11 +166,11 @@ class cached_program:
         if key is None:
             stats["fallbacks"] += 1
             return self.fn(*args)
-        if key in self._programs:
-            prog = self._programs[key]
+        if (folder, key) in self._programs:
+            prog = self._programs[folder, key]
         else:
-            prog = self._load(key) or self._export(key, args)
-            self._programs[key] = prog  # None: cannot be exported, do not try again
+            prog = self._load(folder, key, stats) or self._export(folder, key, args, stats)
+            self._programs[folder, key] = prog  # None: cannot be exported, do not try again
         if prog is None:
             stats["fallbacks"] += 1
             return self.fn(*args)
@@ -202,12 +186,13 @@ class cached_program:
             return jax.jit(exported.call, compiler_options=self.compiler_options)
         return jax.jit(exported.call)
 
-    def _paths(self, key: str) -> tuple[Path, Path]:
-        return _dir / f"{key}.jaxexport", _dir / f"{key}.out"
+    @staticmethod
+    def _paths(folder: Path, key: str) -> tuple[Path, Path]:
+        return folder / f"{key}.jaxexport", folder / f"{key}.out"
 
-    def _load(self, key: str):
-        prog_path, out_path = self._paths(key)
-        if not _cpu_kernels_ready():
+    def _load(self, folder: Path, key: str, stats: dict):
+        prog_path, out_path = self._paths(folder, key)
+        if not cpu_lapack_ready():
             return None
         try:
             exported = jax.export.deserialize(bytearray(prog_path.read_bytes()))
@@ -219,7 +204,7 @@ class cached_program:
         touch(out_path)
         return self._jit(exported), template
 
-    def _export(self, key: str, args: tuple):
+    def _export(self, folder: Path, key: str, args: tuple, stats: dict):
         dyn, static = eqx.partition(args, eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(dyn)
         box = {}
@@ -241,7 +226,7 @@ class cached_program:
             template = pickle.dumps(box["template"])
         except Exception:  # e.g. host callbacks (EQX_ON_ERROR=raise) or an unpicklable output
             return None
-        prog_path, out_path = self._paths(key)
+        prog_path, out_path = self._paths(folder, key)
         try:
             atomic_write(out_path, lambda tmp: Path(tmp).write_bytes(template))
             atomic_write(prog_path, lambda tmp: Path(tmp).write_bytes(bytes(blob)))

@@ -17,7 +17,8 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
+
+from .result import RESULTS
 
 _ARMIJO = 1e-4
 _HALVINGS = 40
@@ -148,7 +149,7 @@ def solve_equilibrium(
     tol: float = 1e-9,
     max_steps: int = 60,
     throw: bool = False,
-) -> tuple[jax.Array, optx.RESULTS, jax.Array]:
+) -> tuple[jax.Array, RESULTS, jax.Array]:
     """Minimise the convex ``potential(y, args)``; derivatives w.r.t. ``args`` are implicit.
 
     Arguments:
@@ -166,19 +167,19 @@ def solve_equilibrium(
             so batched callers leave it off and read ``result`` per item.
 
     Returns:
-        ``(y, result, steps)``: the minimiser, the result code — ``optx.RESULTS.successful``,
+        ``(y, result, steps)``: the minimiser, the result code — ``RESULTS.successful``,
         ``nonfinite`` (an iterate became inf or NaN) or ``nonlinear_max_steps_reached`` — and
         the steps taken.
     """
     y, converged, steps = _implicit_solve(potential, grad_hess, max_steps, tol, y0, args)
     finite = jnp.all(jnp.isfinite(jax.lax.stop_gradient(y)))
-    result = optx.RESULTS.where(
+    result = RESULTS.where(
         converged,
-        optx.RESULTS.successful,
-        optx.RESULTS.where(
-            finite, optx.RESULTS.nonlinear_max_steps_reached, optx.RESULTS.nonfinite
+        RESULTS.successful,
+        RESULTS.where(
+            finite, RESULTS.nonlinear_max_steps_reached, RESULTS.nonfinite
         ),
     )
     if throw:
-        y = result.error_if(y, result != optx.RESULTS.successful)
+        y = result.error_if(y, result != RESULTS.successful)
     return y, result, steps

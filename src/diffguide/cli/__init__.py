@@ -7,6 +7,7 @@ then sets up JAX (float64, the compilation cache, see :func:`._common.prepare_ru
 """
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
 import os
@@ -41,7 +42,7 @@ def _version() -> str:
     from .._core.version import __version__
 
     deps = []
-    for dist in ("jax", "jaxlib", "equinox", "optimistix", "lineax"):
+    for dist in ("jax", "jaxlib", "equinox"):
         try:
             deps.append(f"{dist} {version(dist)}")
         except PackageNotFoundError:
@@ -113,8 +114,9 @@ def main(argv: list[str] | None = None) -> int:
         if getattr(args, "figure_worker", False) and not getattr(args, "no_plots", False):
             args.figures.start()  # before JAX: it imports matplotlib on the other core meanwhile
         normalise_mesh(args, args.command)
-        prepare_runtime(args)
-        with bare_figures():  # the commands' figures are files: none made through pyplot
+        # the command's table and program caches, active while it runs (none: --no-cache)
+        caches = prepare_runtime(args) or contextlib.nullcontext()
+        with caches, bare_figures():  # the commands' figures are files: none made through pyplot
             return int(args.func(args) or 0)
     except (ValueError, OSError) as exc:  # bad input: one line, no traceback
         print(f"diffguide {args.command}: error: {exc}", file=sys.stderr)

@@ -197,23 +197,24 @@ def cache_dir(args) -> Path | None:
     return Path(text).expanduser()
 
 
-def prepare_runtime(args) -> None:
-    """Set up JAX for a command-line run, before it is imported.
+def prepare_runtime(args):
+    """Set up JAX for a command-line run, before it is imported; returns the command's caches.
 
     - ``EQX_ON_ERROR=nan`` unless the user set it: equinox's default error checks are host
       callbacks, which JAX refuses to store in the persistent cache, so without it a second run
       recompiles everything. The consequence: a check that fails inside compiled code gives NaN
       instead of an exception, and the solvers report NaN as non-convergence (exit 3).
     - the persistent compilation cache (:func:`cache_dir`; every compilation is stored), when
-      this process starts JAX itself or the user named a folder explicitly, the cache of
-      condensed tables in its sub-folder :data:`TABLE_SUBDIR` (:mod:`diffguide.fe.cache`) and
-      the exported programs in :data:`EXPORT_SUBDIR` (:mod:`diffguide._core.aot`: a second run
-      skips tracing the fit's linearisation and the sweep).
+      this process starts JAX itself or the user named a folder explicitly.
     - float64 (micrometres on metre-scale geometry need it).
-    """
-    from .._core.stack import check_stack
 
-    check_stack()
+    Returns:
+        with that folder, a :class:`~diffguide._core.caches.Caches` for the condensed tables in
+        its sub-folder :data:`TABLE_SUBDIR` (:mod:`diffguide.fe.cache`) and the exported
+        programs in :data:`EXPORT_SUBDIR` (:mod:`diffguide._core.aot`: a second run skips
+        tracing the fit's linearisation and the sweep), for the caller to activate while the
+        command runs (``with caches:``); else ``None`` (nothing is cached: ``--no-cache``).
+    """
     if "equinox" not in sys.modules:
         os.environ.setdefault("EQX_ON_ERROR", "nan")
     jax_was_loaded = "jax" in sys.modules
@@ -225,6 +226,7 @@ def prepare_runtime(args) -> None:
         os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
     import jax
 
+    caches = None
     if folder is not None and (not jax_was_loaded or getattr(args, "cache_dir", None)):
         try:
             folder.mkdir(parents=True, exist_ok=True)
@@ -236,23 +238,15 @@ def prepare_runtime(args) -> None:
             # of small functions whose compilations add up to seconds
             jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
             jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-            from .._core.aot import set_export_dir
-            from ..fe.cache import set_table_cache_dir
-
-            set_table_cache_dir(folder / TABLE_SUBDIR)
-            set_export_dir(folder / EXPORT_SUBDIR)
             from .._core.cachedir import prune
+            from .._core.caches import Caches
 
+            caches = Caches(tables=folder / TABLE_SUBDIR, exports=folder / EXPORT_SUBDIR)
             prune(folder, cache_max_bytes())
-    if folder is None:  # --no-cache (an earlier in-process run may have set a folder)
-        from .._core.aot import set_export_dir
-        from ..fe.cache import set_table_cache_dir
-
-        set_table_cache_dir(None)
-        set_export_dir(None)
     from .._core.precision import enable_x64
 
     enable_x64()
+    return caches
 
 
 def cache_max_bytes() -> int:

@@ -147,13 +147,10 @@ def split_cpu_into_devices(n: int | None = None) -> bool:
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_force_host_platform_device_count" in flags:
         return False
-    try:
-        from jax._src import xla_bridge
+    from .._core.compat import backends_initialized
 
-        if xla_bridge.backends_are_initialized():
-            return False
-    except (ImportError, AttributeError):  # private API moved: set the flag and hope
-        pass
+    if backends_initialized():  # None (cannot be told): set the flag and hope
+        return False
     os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
     return True
 

@@ -3,10 +3,11 @@
 The condensation (:func:`diffguide.fe.condense`) is a one-time computation per table, but the
 command line repeats it on every run (``diffguide fit`` condenses the table at nine thicknesses
 and the prior value, ``simulate`` once): ~0.05-0.1 s each with concrete inputs (NumPy), seconds
-for the first compiled call with traced ones. With a cache
-folder set (:func:`set_table_cache_dir`; the command line sets ``<cache dir>/tables`` — its
-``--cache-dir``, ``$DIFFGUIDE_CACHE_DIR``, default ``~/.cache/diffguide/jax`` — and
-``--no-cache`` switches it off), every condensation with concrete inputs is looked up first:
+for the first compiled call with traced ones. Within ``with Caches(tables=folder):``
+(:class:`diffguide._core.caches.Caches`; the command line activates ``<cache dir>/tables`` for
+each command — its ``--cache-dir``, ``$DIFFGUIDE_CACHE_DIR``, default ``~/.cache/diffguide/jax``
+— and ``--no-cache`` switches it off), every condensation with concrete inputs is looked up
+first:
 
 - **key**: SHA-256 of everything the result depends on — every array and static field of the
   mesh, the plate section (thickness, material), the patches, the control points, the node and
@@ -22,10 +23,11 @@ folder set (:func:`set_table_cache_dir`; the command line sets ``<cache dir>/tab
 
 A traced input (inside ``jit``/``grad``: differentiating w.r.t. the thickness or the node
 coordinates) bypasses the cache. The arrays read back are bit-identical to those written.
+Without active caches (the library's default) nothing is read or written; lookups are counted
+in the active caches' ``table_stats``.
 """
 
 import hashlib
-import os
 from pathlib import Path
 
 import jax
@@ -33,27 +35,13 @@ import numpy as np
 
 from .._core.atomic import atomic_write
 from .._core.cachedir import touch
+from .._core.caches import Caches
 from .._core.fingerprint import code_fingerprint
 
 #: Bumped when the file layout changes.
 FORMAT = 1
 _FIELDS = ("K", "f", "R", "r0", "node_modes", "node_u0", "ref_points", "nodes")
-_dir: Path | None = None
-_code_hash: str | None = None
-#: Lookups in this process: ``{"hits": n, "misses": n, "writes": n}`` (for benchmarks and tests).
-stats = {"hits": 0, "misses": 0, "writes": 0}
-
-
-def set_table_cache_dir(path: str | os.PathLike | None) -> None:
-    """Use ``path`` (created when needed) for condensed tables; ``None`` switches the cache off
-    (the default: the library caches nothing unless asked; the command line asks)."""
-    global _dir
-    _dir = None if path is None else Path(path).expanduser()
-
-
-def table_cache_dir() -> Path | None:
-    """The folder in use, or ``None``."""
-    return _dir
+_code_hash: str | None = None  # the source hash, computed once per process
 
 
 def _code_version() -> str:
@@ -86,14 +74,17 @@ def table_key(*inputs) -> str | None:
     return h.hexdigest()
 
 
-def _path(key: str) -> Path | None:
-    return None if _dir is None else _dir / f"{key}.npz"
+def _path(caches: Caches | None, key: str | None) -> Path | None:
+    if caches is None or caches.tables is None or key is None:
+        return None
+    return caches.tables / f"{key}.npz"
 
 
-def load(key: str | None):
-    """The cached table of ``key`` (a :class:`~diffguide.fe.condense.CondensedTable`), or
-    ``None`` (no cache, no file, or a file that is unreadable, incomplete or for another key)."""
-    path = None if key is None else _path(key)
+def load(caches: Caches | None, key: str | None):
+    """The table of ``key`` (a :class:`~diffguide.fe.condense.CondensedTable`) in ``caches``,
+    or ``None`` (no table cache, no file, or a file that is unreadable, incomplete or for
+    another key)."""
+    path = _path(caches, key)
     if path is None:
         return None
     from .condense import CondensedTable
@@ -104,19 +95,19 @@ def load(key: str | None):
                 raise ValueError("another key")
             arrays = {k: np.array(z[k]) for k in _FIELDS}
     except Exception:  # missing, partial, corrupt, old: recompute (and rewrite)
-        stats["misses"] += 1
+        caches.table_stats["misses"] += 1
         return None
-    stats["hits"] += 1
+    caches.table_stats["hits"] += 1
     touch(path)  # used now: the cache's size limit removes the least recently used first
     import jax.numpy as jnp
 
     return CondensedTable(**{k: jnp.asarray(v) for k, v in arrays.items()})
 
 
-def store(key: str | None, table) -> None:
-    """Write ``table`` under ``key`` (atomically); silently nothing when no cache is set or the
-    folder cannot be written."""
-    path = None if key is None else _path(key)
+def store(caches: Caches | None, key: str | None, table) -> None:
+    """Write ``table`` under ``key`` in ``caches`` (atomically); silently nothing without a
+    table cache or when the folder cannot be written."""
+    path = _path(caches, key)
     if path is None or any(
         isinstance(v, jax.core.Tracer) for v in jax.tree_util.tree_leaves(table)
     ):
@@ -124,6 +115,6 @@ def store(key: str | None, table) -> None:
     arrays = {k: np.asarray(getattr(table, k)) for k in _FIELDS}
     try:
         atomic_write(path, lambda tmp: np.savez(tmp, key=np.asarray(key), **arrays))
-        stats["writes"] += 1
+        caches.table_stats["writes"] += 1
     except OSError:
         pass

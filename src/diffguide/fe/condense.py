@@ -34,6 +34,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.caches import active_caches
+from .._core.compat import outside_traces
 from .._core.rigid import rigid_transfer
 from .._core.precision import require_x64
 from .._core.types import Array, Float, ScalarLike
@@ -227,7 +229,8 @@ def condense(
     eager = backend == "numpy" or (backend == "auto" and not traced)
     owner, block, n_free, quads = _topology(mesh, patches, points)
     key = None
-    if table_cache.table_cache_dir() is not None:  # a disk cache of tables (.cache)
+    caches = active_caches()
+    if caches is not None and caches.tables is not None:  # a disk cache of tables (.cache)
         key = table_cache.table_key(
             "condense",
             mesh,
@@ -240,7 +243,7 @@ def condense(
             surface_load,
             method,
         )
-        cached = table_cache.load(key)
+        cached = table_cache.load(caches, key)
         if cached is not None:
             return cached
     if eager:  # concrete inputs: NumPy arrays throughout
@@ -261,7 +264,7 @@ def condense(
                              ref_xy, gravity, sl, method, xp)
     if eager:
         table = _finish_numpy(table)
-    table_cache.store(key, table)
+    table_cache.store(caches, key, table)
     return table
 
 
@@ -347,18 +350,9 @@ def _grid_natural_coords(mesh: TableMesh, quads: np.ndarray, pts: np.ndarray):
 CONDENSE_COMPILER_OPTIONS = {"xla_backend_optimization_level": 0}
 
 
-def _outside_traces() -> bool:
-    """Whether no JAX transformation is being traced (a ``jit`` with compiler options must be
-    the outermost one)."""
-    try:
-        from jax._src.core import trace_state_clean
-    except ImportError:  # pragma: no cover - a JAX without it: no options
-        return False
-    return bool(trace_state_clean())
-
-
 def _condense(*args):
-    impl = _condense_top if _outside_traces() else _condense_nested
+    # a ``jit`` with compiler options must be the outermost one
+    impl = _condense_top if outside_traces() else _condense_nested
     return impl(*args)
 
 

@@ -16,10 +16,10 @@ solved by Newton with a line search on Π in scaled unknowns (µm, µrad)
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import optimistix as optx
 
 from .._core.newton import solve_equilibrium
 from .._core.precision import require_x64
+from .._core.result import RESULTS
 from .._core.types import Array, Float, Int
 from .carriage import Carriage
 
@@ -34,19 +34,19 @@ class CarriageSolution(eqx.Module):
         pose: ``(tx, ty, tz, θx, θy, θz)`` of the carriage origin (m, rad).
         approaches: element approaches at equilibrium, ``(rows, n)`` (m).
         forces: element forces, ``(rows, n)`` (N).
-        result: optimistix result code (``optx.RESULTS.successful`` when converged).
+        result: result code (``RESULTS.successful`` when converged).
         steps: Newton steps taken.
     """
 
     pose: Float[Array, "*batch 6"]
     approaches: Float[Array, "*batch rows n"]
     forces: Float[Array, "*batch rows n"]
-    result: optx.RESULTS
+    result: RESULTS
     steps: Int[Array, "*batch"]
 
     @property
     def converged(self) -> jax.Array:
-        return self.result == optx.RESULTS.successful
+        return self.result == RESULTS.successful
 
 
 ALL_FREE = (1, 2, 3, 4, 5)

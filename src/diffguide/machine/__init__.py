@@ -1,6 +1,7 @@
 """Machine layer: the condensed table on its carriages, rails, screw and gravity; equilibrium at
 every table position; joint kinematic errors at points on the table; the ``majda2012`` machine."""
 
+from .._core.result import RESULTS as RESULTS
 from .build import build_machine as build_machine
 from .build import table_from_spec as table_from_spec
 from .build import with_overrides as with_overrides

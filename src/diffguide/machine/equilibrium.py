@@ -30,10 +30,10 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 from .._core.newton import implicit_root, solve_equilibrium
 from .._core.precision import require_x64
+from .._core.result import RESULTS
 from .._core.rigid import rigid_transfer
 from .._core.types import Array, Float, Int
 from ..fe.condense import CondensedTable
@@ -336,19 +336,19 @@ class MachineState(eqx.Module):
         positions: table positions ``x`` (m).
         interface: interface DOF ``u`` of the table at each position, ``(n_pos, m)`` (m, rad).
         forces: element forces, ``(n_pos, k, rows, n)`` (N).
-        result: optimistix result code per position.
+        result: result code (:class:`~diffguide._core.result.RESULTS`) per position.
         steps: Newton steps per position.
     """
 
     positions: Float[Array, " n_pos"]
     interface: Float[Array, "n_pos m"]
     forces: Float[Array, "n_pos k rows n"]
-    result: optx.RESULTS
+    result: RESULTS
     steps: Int[Array, " n_pos"]
 
     @property
     def converged(self) -> jax.Array:
-        return self.result == optx.RESULTS.successful
+        return self.result == RESULTS.successful
 
 
 def _no_grad(tree):
@@ -420,7 +420,7 @@ def equilibrium_traced(
 
     Returns:
         :class:`MachineState`; positions that did not converge are flagged in ``result``
-        (``optx.RESULTS.nonlinear_max_steps_reached``, or ``nonfinite`` for inf/NaN).
+        (``RESULTS.nonlinear_max_steps_reached``, or ``nonfinite`` for inf/NaN).
     """
     require_x64("equilibrium")
     if len(rails) != 2:
@@ -462,7 +462,7 @@ equilibrium = eqx.filter_jit(equilibrium_traced)
 
 def _error_if_failed(x, result, what: str):
     """``x``, raising (``eqx.error_if``) if any entry of the batched ``result`` failed."""
-    failed = result != optx.RESULTS.successful
+    failed = result != RESULTS.successful
     return eqx.error_if(
         x, failed, f"{what}: the solve did not converge at some positions (see `result`)"
     )

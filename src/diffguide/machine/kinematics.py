@@ -17,9 +17,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 from .._core.checks import concrete
+from .._core.result import RESULTS
 from .._core.rigid import transfer
 from .._core.types import Array, Float
 from ..guideway.rails import AbstractRailProfile
@@ -36,8 +36,8 @@ class JointErrors(eqx.Module):
         positions: table positions ``x`` (m). x_ref: reference position (m).
         point_names: control-point names. points_xy: their (x, y) on the table (m).
         errors: ``(n_pos, n_points, 6)``: EXX, EYX, EZX (m), EAX, EBX, ECX (rad).
-        result: optimistix result code per position (the reference position's failure is
-            reported at every position).
+        result: result code (:class:`~diffguide._core.result.RESULTS`) per position (the
+            reference position's failure is reported at every position).
         interface: the table's interface DOF at each position (m, rad).
         interface_ref: the same at the reference position.
     """
@@ -47,13 +47,13 @@ class JointErrors(eqx.Module):
     point_names: tuple[str, ...] = eqx.field(static=True)
     points_xy: Float[Array, "p 2"]
     errors: Float[Array, "n_pos p 6"]
-    result: optx.RESULTS
+    result: RESULTS
     interface: Float[Array, "n_pos m"]
     interface_ref: Float[Array, " m"]
 
     @property
     def converged(self) -> jax.Array:
-        return self.result == optx.RESULTS.successful
+        return self.result == RESULTS.successful
 
     def user_units(self) -> np.ndarray:
         """``errors`` in µm and µrad, as a NumPy array ``(n_pos, n_points, 6)``
@@ -155,7 +155,7 @@ def joint_errors_traced(
     motion = point_motion(machine, state.interface)
     errors = motion[:-1] - motion[-1]
     # a failed reference position invalidates every error: report its code everywhere
-    ref_ok = (state.result == optx.RESULTS.successful)[-1]
+    ref_ok = (state.result == RESULTS.successful)[-1]
     result = jax.tree_util.tree_map(lambda v: jnp.where(ref_ok, v[:-1], v[-1]), state.result)
     if throw:
         errors = _error_if_failed(errors, result, "joint_errors")
