@@ -41,7 +41,7 @@ def versions() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
     out = []
-    for name in ("diffguide", "jax", "jaxlib", "equinox", "optimistix", "lineax", "numpy"):
+    for name in ("diffguide", "jax", "jaxlib", "equinox", "numpy"):
         try:
             out.append(f"{name} {version(name)}")
         except PackageNotFoundError:

@@ -21,6 +21,7 @@ from ._core.version import __version__ as __version__
 _LAZY = {
     "enable_x64": "._core.precision",
     "require_x64": "._core.precision",
+    "Caches": "._core.caches",
     "AbstractContactLaw": ".contact",
     "HertzBall": ".contact",
     "PalmgrenRoller": ".contact",

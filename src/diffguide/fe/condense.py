@@ -36,8 +36,8 @@ import numpy as np
 
 from .._core.caches import active_caches
 from .._core.compat import outside_traces
-from .._core.rigid import rigid_transfer
 from .._core.precision import require_x64
+from .._core.rigid import rigid_transfer
 from .._core.types import Array, Float, ScalarLike
 from . import banded
 from . import cache as table_cache

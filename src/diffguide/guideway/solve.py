@@ -10,7 +10,8 @@ point of the convex potential :math:`Π(q) = \sum_j φ(a_j(q)) - W·q`):
 solved by Newton with a line search on Π in scaled unknowns (µm, µrad)
 (:mod:`diffguide._core.newton`). Derivatives with respect to the load, the carriage parameters
 (preload, law) and the rail deviation come from implicit differentiation
-(``optimistix.ImplicitAdjoint``), never from unrolled Newton iterations.
+(the ``custom_jvp`` of :func:`diffguide._core.newton.solve_equilibrium`), never from unrolled
+Newton iterations.
 """
 
 import equinox as eqx

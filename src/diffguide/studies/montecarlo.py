@@ -27,8 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.precision import require_x64
-from ..machine.errors import ERRORS
 from ..machine.equilibrium import Machine
+from ..machine.errors import ERRORS
 from ..machine.kinematics import ERROR_NAMES, joint_errors
 from .random_rails import RailBatch, rails_from_coefficients
 
