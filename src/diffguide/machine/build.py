@@ -26,6 +26,7 @@ import numpy as np
 from ..fe.table import TableModel, table_model
 from ..guideway.carriage import carriage_from_spec
 from .equilibrium import Machine
+from .paper import majda2012_spec
 from .spec import MachineSpec
 
 
@@ -142,7 +143,7 @@ def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
 
     Arguments:
         spec: a :class:`~diffguide.machine.spec.MachineSpec` (default
-            :func:`~diffguide.machine.majda2012.majda2012_spec`); a machine file's configuration
+            :func:`~diffguide.machine.paper.majda2012_spec`); a machine file's configuration
             (user units) becomes one with :func:`diffguide.io.config.spec_from_config`.
         overrides: ``thickness``, ``E``, ``preload_fraction``, ``carriage_spacing``, ``nx``,
             ``ny``, ``points``: shorthands for replacing those fields of ``spec``
@@ -156,8 +157,6 @@ def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
             docstring), valid while no footprint line passes another grid line (checked).
     """
     if spec is None:
-        from .majda2012 import majda2012_spec  # builds on this module
-
         spec = majda2012_spec()
     elif not isinstance(spec, MachineSpec):
         raise TypeError(
