@@ -13,7 +13,7 @@ private symbol                                     used for (fallback when it is
                                                    options only outside other traces
                                                    (``False``: default options)
 ``jax._src.xla_bridge.backends_are_initialized``   :func:`backends_initialized` — whether
-                                                   ``XLA_FLAGS`` can still take effect
+                                                   XLA's flags variable can still take effect
                                                    (``None``: unknown)
 ``jax._src.lib.lapack._lapack.initialize``         :func:`cpu_lapack_ready` — jaxlib's CPU
                                                    LAPACK kernels loaded before a stored
@@ -39,7 +39,7 @@ PRIVATE = (
     (
         "jax._src.xla_bridge",
         "backends_are_initialized",
-        "whether XLA_FLAGS can still take effect (the montecarlo command's CPU devices)",
+        "whether XLA's flags variable can still take effect (the montecarlo command's CPU devices)",
     ),
     (
         "jax._src.lib",
@@ -65,7 +65,7 @@ def outside_traces() -> bool:
 
 
 def backends_initialized() -> bool | None:
-    """Whether JAX has initialised its backends (after which ``XLA_FLAGS`` is ignored);
+    """Whether JAX has initialised its backends (after which XLA's flags variable is ignored);
     ``None`` when that cannot be told."""
     try:
         from jax._src import xla_bridge
