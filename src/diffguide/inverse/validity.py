@@ -87,9 +87,16 @@ def outside_measured(meas, positions, what: str) -> list[Validity]:
 
 
 def measured_rotations(meas) -> list[Validity]:
-    """:func:`~diffguide.machine.validity.large_rotations` of the measured angular channels."""
-    rot = np.isin(np.asarray(meas.quantity), [QUANTITIES.index(q) for q in ("EAX", "EBX", "ECX")])
-    return large_rotations(np.asarray(meas.value, float)[rot], "the measured rotations")
+    """:func:`~diffguide.machine.validity.large_rotations` of the measured angular channels,
+    each about its mean (an instrument's zero is not an error of the axis)."""
+    chan = meas.channel_index()
+    value = np.asarray(meas.value, float)
+    angular = [QUANTITIES.index(q) for q in ("EAX", "EBX", "ECX")]
+    dev = [value[chan == c] - value[chan == c].mean()
+           for c, (_, q, _) in enumerate(meas.channels) if q in angular]
+    if not dev:
+        return []
+    return large_rotations(np.concatenate(dev), "the measured rotations")
 
 
 def fit_checks(fit, meas) -> list[Validity]:
