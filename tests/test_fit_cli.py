@@ -272,3 +272,8 @@ def test_layout_csv_is_the_measured_layout_and_plan_takes_it_as_start(out_dir, t
     bad.write_text("instrument,point,x_mm,y_mm\nlaser,P1,0,0\n")
     assert main(["plan", "--start", str(bad), "--out", str(tmp_path / "no"), "--quiet"]) == 2
     assert "bad.csv:2: field 'instrument'" in capsys.readouterr().err
+
+
+def test_bundled_job_raises_no_validity_warning(out_dir):
+    # no false alarm: the bundled data sit well inside the model's validity
+    assert json.loads((out_dir / "report.json").read_text())["validity"] == []

@@ -287,7 +287,22 @@ def run(args) -> int:
     if args.export_compensation:
         _export_compensation(args, cfg, spec, points, elastic, info.get("x0_mm", 0.0))
     _say_results(args, report, fits, written, t_start)
+    _warn_validity(args, report, meas, cfg)
     return 0 if elastic.converged else EXIT_NOT_CONVERGED
+
+
+def _warn_validity(args, report, meas, cfg) -> None:
+    """Each validity warning (report.json's ``validity``; and a compensation table over
+    positions the data do not cover) once on stderr."""
+    from ..inverse.validity import outside_measured
+
+    lines = [f"{w['message']}; {w['action']}" for w in report.get("validity", [])]
+    if args.export_compensation:
+        half = cfg["machine"]["stroke_mm"] / 2e3
+        lines += [str(w) for w in outside_measured(meas, [-half, half],
+                                                   "the compensation table")]
+    for line in dict.fromkeys(lines):
+        print(f"diffguide fit: warning: {line}", file=sys.stderr)
 
 
 def _read(args, cfg, info: dict):

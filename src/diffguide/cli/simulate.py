@@ -275,4 +275,22 @@ def run(args) -> int:
         _compensation(args, name, je, errs, positions, say)
     if args.plot:
         _plot(args, name, je, errs, positions, say)
+    for w in _validity(args, machine, rails, positions, je):
+        print(f"diffguide simulate: warning: {w}", file=sys.stderr)
     return 0
+
+
+def _validity(args, machine, rails, positions, je) -> list:
+    """The model's validity checks of this sweep (:mod:`diffguide.machine.validity`): rails
+    extrapolated beyond their samples, rails or contacts beyond the small-deflection range,
+    carriages lifted off, rotations beyond the small-angle bound."""
+    from ..io.rails_csv import sampled_ranges
+    from ..machine import validity
+
+    out = []
+    if args.rails:
+        out += validity.rail_extrapolation(machine, positions, sampled_ranges(args.rails))
+    out += validity.rail_range(machine, rails, positions)
+    out += validity.contact_range(machine, rails, je)
+    out += validity.large_rotations(np.asarray(je.errors)[..., 3:], "the joint errors")
+    return list(dict.fromkeys(out))

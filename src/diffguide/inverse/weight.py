@@ -26,7 +26,19 @@ touch, so its minimum stays interior; it is also less variable than GCV and pron
 over- rather than under-smoothing (Wahba 1985, Ann. Stat. 13, 1378; Reiss & Ogden 2009,
 J. R. Stat. Soc. B 71, 505), and it is the λ under which the posterior bands are the Bayesian
 bands of a prior whose scale the data chose. λ is searched over ``λ₀·10^[-12, 6]`` (``λ₀`` the
-mean ``s_i²``); a minimum on the edge of that range is reported (``at_bound``).
+mean ``s_i²``), capped at :func:`detectable_weight`; a minimum on the edge of that range is
+reported (``at_bound``).
+
+**The prior is never narrower than the data could detect.** The prior predicts the rails' signal
+in the whitened data ``Jθ`` with the expected energy ``E‖Jθ‖² = (s²/λ)·tr(J̃ᵀJ̃) =
+(s²/λ)·Σ s_i²``. A λ above ``λ_max = Σ s_i²`` claims rails whose whole signal, summed over every
+datum, stays below one stated σ² — rails the data could not see at their stated noise. Data
+that show nothing (constant channels, round-off after the channel zeros: the profiled noise scale
+runs to zero and the marginal likelihood to λ → ∞) cannot establish that, so λ is never chosen
+above ``λ_max``: there the rails' σ are those of a prior just at the data's detection limit,
+the σ that data with no signal at the stated noise give, instead of a prior collapsed onto zero.
+Data with signal choose λ far below ``λ_max`` (the bundled example: ``~10⁻⁵ λ_max``) and are
+not affected.
 """
 
 import dataclasses
@@ -114,6 +126,13 @@ def project_out(F, *arrays):
     return (*out, Q.shape[1])
 
 
+def detectable_weight(sp: "_Spectrum") -> float:
+    """``λ_max = Σ s_i² = tr(J̃ᵀJ̃)`` (whitened units): the largest weight whose prior's rails
+    still show in the data with at least one stated σ² of signal energy in all (module
+    docstring); the weight search never goes above it."""
+    return float(np.sum(sp.s2))
+
+
 def choose_weight(J, y, Omega, n_eff: int, criterion: str = "ml") -> WeightChoice:
     """λ for the whitened linear problem ``y ≈ J θ`` with prior precision ``λΩ``.
 
@@ -130,7 +149,9 @@ def choose_weight(J, y, Omega, n_eff: int, criterion: str = "ml") -> WeightChoic
     if sp.s2.size == 0:
         return WeightChoice(1.0, criterion, float("nan"), 0.0, n_eff, True, np.zeros((0, 3)))
     lam0 = float(np.mean(sp.s2))
+    cap = detectable_weight(sp)
     grid = lam0 * _GRID
+    grid = np.append(grid[grid < cap], cap)
     scores = sp.score(grid, criterion, n_eff)
     k = int(np.nanargmin(scores))
     at_bound = k in (0, len(grid) - 1)

@@ -5,6 +5,8 @@ import numpy as np
 
 from ..inverse import identifiability
 from ..inverse.data import QUANTITIES
+from ..inverse.validity import fit_checks
+from ..machine.validity import rail_range
 from ..studies.iso230_2 import channel_figures
 
 
@@ -45,7 +47,16 @@ def fit_report(meas, fits: dict, profiles: dict, seconds: dict, machine, *, sour
             for r in range(2) for p, pl in enumerate(("vertical", "horizontal"))}
     if truth is not None:
         report["truth"] = _truth_section(profiles, truth, truth_file)
+    report["validity"] = [w.as_dict() for w in fit_validity(elastic, meas, machine)]
     return report
+
+
+def fit_validity(fit, meas, machine) -> list:
+    """The validity warnings of the elastic fit (:mod:`diffguide.inverse.validity`: null data,
+    χ²/dof, measured rotations; :func:`diffguide.machine.validity.rail_range`: the fitted rails
+    under the carriages at the measured positions)."""
+    return [*fit_checks(fit, meas),
+            *rail_range(machine, fit.rails(), np.unique(np.asarray(meas.position)))]
 
 
 def _truth_section(profiles, truth, truth_file) -> dict:

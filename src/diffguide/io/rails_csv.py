@@ -141,6 +141,12 @@ def read_rails_csv(path: str | os.PathLike, *, spacing: float | None = None):
     return tuple(out)
 
 
+def sampled_ranges(path: str | os.PathLike) -> dict[int, tuple[float, float]]:
+    """``{rail index (0 = rail 1, 1 = rail 2): (first s, last s)}`` (m) of the rails present in a
+    rails CSV: where its profiles are data (beyond, :func:`read_rails_csv` continues them)."""
+    return {r - 1: (float(d[0, 0]), float(d[-1, 0])) for r, d in read_rails_samples(path).items()}
+
+
 def rails_at(path: str | os.PathLike, s: np.ndarray) -> np.ndarray:
     """The profiles of a rails CSV linearly interpolated at ``s`` (m): ``(2 rails, 2 planes
     (vertical, horizontal), len(s))`` (m); a rail absent from the file is straight (zero)."""
