@@ -226,6 +226,7 @@ def prepare_runtime(args):
         os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
     import jax
 
+    _one_line_cache_warnings()
     caches = None
     if folder is not None and (not jax_was_loaded or getattr(args, "cache_dir", None)):
         try:
@@ -247,6 +248,26 @@ def prepare_runtime(args):
 
     enable_x64()
     return caches
+
+
+def _one_line_cache_warnings() -> None:
+    """Print each :class:`~diffguide._core.caches.CacheWarning` (a damaged cache entry that was
+    rebuilt, a cache folder that cannot be written) as one line on stderr, ``diffguide: ...``,
+    without the source line Python's default format adds; other warnings are left as they are."""
+    from .._core.caches import CacheWarning
+
+    shown = warnings.showwarning
+    if getattr(shown, "diffguide_cache_lines", False):
+        return
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, CacheWarning):
+            print(f"diffguide: {message}", file=sys.stderr if file is None else file)
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    show.diffguide_cache_lines = True
+    warnings.showwarning = show
 
 
 def cache_max_bytes() -> int:
