@@ -230,7 +230,7 @@ class cached_program:
             out = cacheentry.read(paths[1], _OUTPUT, key, FORMAT)
             if prog is None or out is None:  # a miss (a lone partner is overwritten)
                 return None
-            if out[0]["inputs"].get("program_sha256") != prog[0]["sha256"]:
+            if out[0].get("inputs.program_sha256") != prog[0]["sha256"]:
                 raise cacheentry.Damaged("written with another program file")
             which = 0
             exported = jax.export.deserialize(bytearray(prog[1]))

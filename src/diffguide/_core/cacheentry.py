@@ -20,7 +20,6 @@ as a failure of the model or of the input. A folder that cannot be written to is
 """
 
 import hashlib
-import json
 import os
 import shutil
 import warnings
@@ -52,6 +51,10 @@ def versions() -> dict[str, str]:
     return {"diffguide": __version__, "jax": jax.__version__, "jaxlib": jaxlib_version}
 
 
+def _line(value: object) -> str:
+    return " ".join(str(value).split())  # one line
+
+
 def encode(kind: str, key: str, fmt: int, payload: bytes, inputs: dict | None = None) -> bytes:
     """The bytes of a cache file holding ``payload`` (see the module docstring)."""
     header = {
@@ -61,31 +64,33 @@ def encode(kind: str, key: str, fmt: int, payload: bytes, inputs: dict | None = 
         "bytes": len(payload),
         "sha256": hashlib.sha256(payload).hexdigest(),
         **versions(),
-        "inputs": inputs or {},
+        **{f"inputs.{name}": value for name, value in (inputs or {}).items()},
     }
-    return MAGIC + json.dumps(header, sort_keys=True, default=str).encode() + b"\n" + payload
+    text = "".join(f"{name}: {_line(value)}\n" for name, value in sorted(header.items()))
+    return MAGIC + text.encode() + b"\n" + payload
 
 
-def decode(data: bytes, kind: str, key: str, fmt: int) -> tuple[dict, bytes]:
+def decode(data: bytes, kind: str, key: str, fmt: int) -> tuple[dict[str, str], bytes]:
     """``(header, payload)`` of the bytes of a cache file; :class:`Damaged` unless every check
     of the module docstring passes."""
     if not data.startswith(MAGIC):
         raise Damaged("not a diffguide cache file" if data else "empty file")
-    end = data.find(b"\n", len(MAGIC), len(MAGIC) + MAX_HEADER)
+    end = data.find(b"\n\n", len(MAGIC) - 1, len(MAGIC) + MAX_HEADER)
     if end < 0:
         raise Damaged("truncated header")
+    header = {}
     try:
-        header = json.loads(data[len(MAGIC):end])
-    except ValueError:
+        for line in data[len(MAGIC):end].decode().splitlines():
+            name, value = line.split(": ", 1)
+            header[name] = value
+    except ValueError:  # not text, or a line without "name: value"
         raise Damaged("unreadable header") from None
-    if not isinstance(header, dict):
-        raise Damaged("unreadable header")
     expected = {"kind": kind, "key": key, "format": fmt, **versions()}
     for name, value in expected.items():
-        if header.get(name) != value:
-            raise Damaged(f"{name} {header.get(name)!r}, expected {value!r}")
-    payload = data[end + 1:]
-    if header.get("bytes") != len(payload):
+        if header.get(name) != _line(value):
+            raise Damaged(f"{name} {header.get(name)!r}, expected {_line(value)!r}")
+    payload = data[end + 2:]
+    if header.get("bytes") != str(len(payload)):
         raise Damaged(f"{len(payload)} bytes of payload, the header says {header.get('bytes')}")
     if header.get("sha256") != hashlib.sha256(payload).hexdigest():
         raise Damaged("checksum mismatch")
