@@ -3,13 +3,15 @@ computed without the cache (bit for bit), any change of the inputs misses, a dam
 ignored and rewritten, and nothing is written without a folder (the library default)."""
 
 import dataclasses
+import io
 
 import equinox as eqx
 import jax
 import numpy as np
 import pytest
 
-from diffguide._core.caches import Caches
+from diffguide._core import cacheentry
+from diffguide._core.caches import Caches, CacheWarning
 from diffguide.fe import Rib
 from diffguide.fe import cache as table_cache
 from diffguide.machine.majda2012 import majda2012_table
@@ -43,7 +45,7 @@ def test_cached_table_equals_fresh_and_changes_miss(caches, folder):
     assert not _files(folder)
     first = tm.condense()  # computed and written
     assert len(_files(folder)) == 1
-    assert caches.table_stats == {"hits": 0, "misses": 1, "writes": 1}
+    assert caches.table_stats == {"hits": 0, "misses": 1, "writes": 1, "damaged": 0}
     again = tm.condense()  # read back
     assert caches.table_stats["hits"] == 1
     assert _equal(fresh, first) and _equal(fresh, again)
@@ -71,15 +73,19 @@ def test_damaged_file_is_ignored_and_rewritten(folder):
     good = tm.condense()
     (path,) = _files(folder)
     path.write_bytes(b"not an npz")
-    again = tm.condense()  # recomputed, not an error
+    with pytest.warns(CacheWarning, match="was damaged"):
+        again = tm.condense()  # recomputed, not an error
     assert _equal(good, again)
-    with np.load(path) as z:  # rewritten whole
+    key = path.name.removesuffix(".npz")
+    _, payload = cacheentry.read(path, table_cache._KIND, key, table_cache.FORMAT)
+    with np.load(io.BytesIO(payload)) as z:  # rewritten whole
         assert set(FIELDS) <= set(z.files)
     # a file holding another key under this name: ignored too
     other = majda2012_table(6, 3, thickness=0.045).condense()
     (p2,) = [p for p in _files(folder) if p != path]
     p2.write_bytes(path.read_bytes())
-    assert _equal(majda2012_table(6, 3, thickness=0.045).condense(), other)
+    with pytest.warns(CacheWarning, match="key"):
+        assert _equal(majda2012_table(6, 3, thickness=0.045).condense(), other)
 
 
 def test_no_folder_no_files_and_traced_inputs_bypass(tmp_path):
@@ -93,4 +99,4 @@ def test_no_folder_no_files_and_traced_inputs_bypass(tmp_path):
 
         g = jax.grad(k00)(0.04)  # traced thickness: no lookup, no write
         assert np.isfinite(g) and not list(tmp_path.rglob("*.npz"))
-    assert caches.table_stats == {"hits": 0, "misses": 0, "writes": 0}
+    assert caches.table_stats == {"hits": 0, "misses": 0, "writes": 0, "damaged": 0}

@@ -15,15 +15,22 @@ activates ``<cache dir>/exports`` for each command):
   memory address (``" at 0x"``) are not cached (the key would differ in every process).
 - **files**: ``<key>.jaxexport`` — the serialised :class:`jax.export.Exported` (StableHLO) of
   the function of the flattened array arguments — and ``<key>.out`` — the output's structure
-  (a pickle of the output with every array replaced by a marker). Both are written to a
-  temporary file and renamed into place. A process that finds them deserialises the program
-  and calls it: XLA compiles it (or loads it from the persistent compilation cache); nothing is
-  traced. The first process exports (traces once) and calls the exported program too, so that
-  the function is traced only once there as well.
-- **robust**: a missing, unreadable or foreign file, a program that cannot be exported (e.g.
-  one holding host callbacks: equinox's checks with ``EQX_ON_ERROR=raise``) or deserialised,
-  and any call from inside another trace fall back to calling the function itself; every
-  fallback is counted in the active caches' ``export_stats``.
+  (a pickle of the output with every array replaced by a marker), each behind a header
+  (:mod:`diffguide._core.cacheentry`: the key, :data:`FORMAT`, the diffguide, JAX and jaxlib
+  versions, what the key was made from, the payload's SHA-256; the ``.out`` names its program's
+  SHA-256 too). Both are written to a temporary file and renamed into place. A process that
+  finds them checks them, deserialises the program and calls it: XLA compiles it (or loads it
+  from the persistent compilation cache); nothing is traced. The first process exports (traces
+  once) and calls the exported program too, so that the function is traced only once there as
+  well, and a run from the cache gives the same bits as the run that filled it.
+- **robust**: a file that fails its checks, a program that cannot be deserialised, does not
+  match the call's arguments, or fails when it is compiled or run the first time, is reported
+  (one :class:`~diffguide._core.caches.CacheWarning`), removed with its partner and exported
+  again — never passed on as a failure of the model. A program that cannot be exported (e.g.
+  one holding host callbacks: equinox's checks with ``EQX_ON_ERROR=raise``) and any call from
+  inside another trace fall back to calling the function itself; every fallback is counted in
+  the active caches' ``export_stats``. A folder that cannot be written to is reported once; the
+  exported program is then used in this process only.
 
 Without active caches or their ``exports`` folder (the library's default), or without the
 ``flatbuffers`` package (which ``jax.export`` needs to serialise), the wrapper calls the
@@ -43,14 +50,15 @@ from pathlib import Path
 import equinox as eqx
 import jax
 
-from .atomic import atomic_write
+from . import cacheentry
 from .cachedir import touch
 from .caches import Caches, active_caches
 from .compat import cpu_lapack_ready, eqx_on_error
 from .fingerprint import code_fingerprint
 
 #: Bumped when the file layout changes.
-FORMAT = 1
+FORMAT = 2
+_PROGRAM, _OUTPUT = "diffguide._core.aot.program", "diffguide._core.aot.output"
 _code_hash: str | None = None  # the source hash, computed once per process
 
 
@@ -169,13 +177,31 @@ class cached_program:
         if (folder, key) in self._programs:
             prog = self._programs[folder, key]
         else:
-            prog = self._load(folder, key, stats) or self._export(folder, key, args, stats)
+            prog = self._load(folder, key, leaves, caches) or self._export(
+                folder, key, args, caches
+            )
             self._programs[folder, key] = prog  # None: cannot be exported, do not try again
         if prog is None:
             stats["fallbacks"] += 1
             return self.fn(*args)
-        call, template = prog
-        out = iter(call(*leaves))
+        call, template, from_disk = prog
+        if from_disk:  # its first call compiles it: a damaged program may fail only now
+            try:
+                out = jax.block_until_ready(call(*leaves))
+            except Exception as exc:
+                cacheentry.heal(stats, self._paths(folder, key)[0], exc)
+                cacheentry.discard(self._paths(folder, key)[1])
+                prog = self._programs[folder, key] = self._export(folder, key, args, caches)
+                if prog is None:
+                    stats["fallbacks"] += 1
+                    return self.fn(*args)
+                call, template, _ = prog
+                out = call(*leaves)
+            else:
+                self._programs[folder, key] = (call, template, False)
+        else:
+            out = call(*leaves)
+        out = iter(out)
         t_leaves, t_def = jax.tree_util.tree_flatten(template)
         return jax.tree_util.tree_unflatten(
             t_def, [next(out) if isinstance(v, _Array) else v for v in t_leaves]
@@ -190,21 +216,39 @@ class cached_program:
     def _paths(folder: Path, key: str) -> tuple[Path, Path]:
         return folder / f"{key}.jaxexport", folder / f"{key}.out"
 
-    def _load(self, folder: Path, key: str, stats: dict):
-        prog_path, out_path = self._paths(folder, key)
+    def _load(self, folder: Path, key: str, leaves: list, caches: Caches):
+        """``(program, output structure, True)`` read from ``folder``, or ``None``: no files
+        (a miss), or damaged ones (reported and removed)."""
         if not cpu_lapack_ready():
             return None
+        paths = self._paths(folder, key)
+        stats = caches.export_stats
+        which = 0
         try:
-            exported = jax.export.deserialize(bytearray(prog_path.read_bytes()))
-            template = pickle.loads(out_path.read_bytes())
-        except Exception:  # missing, partial, foreign, old: export again
+            prog = cacheentry.read(paths[0], _PROGRAM, key, FORMAT)
+            which = 1
+            out = cacheentry.read(paths[1], _OUTPUT, key, FORMAT)
+            if prog is None or out is None:  # a miss (a lone partner is overwritten)
+                return None
+            if out[0].get("inputs.program_sha256") != prog[0]["sha256"]:
+                raise cacheentry.Damaged("written with another program file")
+            which = 0
+            exported = jax.export.deserialize(bytearray(prog[1]))
+            which = 1
+            template = pickle.loads(out[1])
+            _check_signature(exported, template, leaves)
+        except Exception as exc:  # failed a check, cannot be deserialised or unpickled
+            cacheentry.heal(stats, paths[which], exc)
+            cacheentry.discard(paths[1 - which])
             return None
         stats["hits"] += 1
-        touch(prog_path)  # used now: the cache's size limit removes the least recently used
-        touch(out_path)
-        return self._jit(exported), template
+        touch(paths[0])  # used now: the cache's size limit removes the least recently used
+        touch(paths[1])
+        return self._jit(exported), template, True
 
-    def _export(self, folder: Path, key: str, args: tuple, stats: dict):
+    def _export(self, folder: Path, key: str, args: tuple, caches: Caches):
+        """``(program, output structure, False)``: ``fn`` exported, and written to ``folder``
+        where it can be; ``None`` where it cannot be exported."""
         dyn, static = eqx.partition(args, eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(dyn)
         box = {}
@@ -222,18 +266,38 @@ class cached_program:
         ]
         try:
             exported = jax.export.export(jax.jit(flat))(*specs)
-            blob = exported.serialize()
+            blob = bytes(exported.serialize())
             template = pickle.dumps(box["template"])
         except Exception:  # e.g. host callbacks (EQX_ON_ERROR=raise) or an unpicklable output
             return None
+        inputs = {
+            "name": self.name,
+            "environment": _environment(),
+            "arguments": [f"{s.dtype}{list(s.shape)}{'w' if s.weak_type else ''}" for s in specs],
+            "structure": str(treedef),
+        }
         prog_path, out_path = self._paths(folder, key)
-        try:
-            atomic_write(out_path, lambda tmp: Path(tmp).write_bytes(template))
-            atomic_write(prog_path, lambda tmp: Path(tmp).write_bytes(bytes(blob)))
-        except OSError:
-            pass  # a folder that cannot be written to: run it anyway
+        prog_file = cacheentry.encode(_PROGRAM, key, FORMAT, blob, inputs)
+        inputs["program_sha256"] = hashlib.sha256(blob).hexdigest()
+        out_file = cacheentry.encode(_OUTPUT, key, FORMAT, template, inputs)
+        # the structure first: a reader finds the program only once both are there
+        if cacheentry.write(caches, out_path, out_file):
+            cacheentry.write(caches, prog_path, prog_file)
+        stats = caches.export_stats
         stats["exports"] += 1
-        return self._jit(exported), box["template"]
+        return self._jit(exported), box["template"], False
+
+
+def _check_signature(exported, template, leaves: list) -> None:
+    """:class:`~diffguide._core.cacheentry.Damaged` unless the stored program takes arrays
+    of the call's shapes and dtypes and returns as many as its output structure holds."""
+    given = [(tuple(v.shape), v.dtype) for v in leaves]
+    takes = [(tuple(a.shape), a.dtype) for a in exported.in_avals]
+    if given != takes:
+        raise cacheentry.Damaged("the stored program takes other arguments")
+    markers = sum(isinstance(v, _Array) for v in jax.tree_util.tree_leaves(template))
+    if markers != len(exported.out_avals):
+        raise cacheentry.Damaged("the stored output structure does not fit the program")
 
 
 def cached(name: str, compiler_options: dict | None = None) -> Callable[[Callable], cached_program]:

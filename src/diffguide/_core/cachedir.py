@@ -79,3 +79,50 @@ def prune(folder: str | os.PathLike, max_bytes: int) -> tuple[int, int]:
         removed += 1
         freed += size
     return removed, freed
+
+
+def _jax_decompress(data: bytes) -> bytes:
+    """JAX's own decompression of a compilation-cache entry (zstd or zlib, as JAX chose)."""
+    try:
+        from jax._src.compilation_cache import decompress_executable
+    except ImportError:  # pragma: no cover - a JAX without it: the zlib it falls back to
+        import zlib
+
+        return zlib.decompress(data)
+    return decompress_executable(data)
+
+
+def drop_jax_entries(folder: str | os.PathLike, module_name: str) -> list[tuple[Path, str]]:
+    """Remove the damaged entries of JAX's persistent compilation cache in ``folder`` for the
+    compiled function ``module_name`` (files ``<module_name>-<hash>-cache``); returns
+    ``(path, why)`` of each removed.
+
+    JAX (0.9) warns when it cannot read an entry (``Error reading persistent compilation cache
+    entry for '<module_name>'``), compiles again, and then leaves the damaged file in place (it
+    never overwrites an entry), so every later run would compile again and warn again. Called on
+    that warning, this removes the entries of that name that do not decompress; where all of
+    them do (the damage was found later, deserialising), all of that name are removed. JAX then
+    writes the fresh compilation in their place.
+    """
+    found = sorted(Path(folder).glob(f"{glob_escape(module_name)}-*-cache"))
+    bad = []
+    for path in found:
+        try:
+            _jax_decompress(path.read_bytes())
+        except Exception as exc:  # truncated, flipped, foreign: JAX could not read it either
+            bad.append((path, f"{type(exc).__name__}: {exc}"))
+    if not bad:
+        bad = [(path, "JAX could not load it") for path in found]
+    removed = []
+    for path, why in bad:
+        try:
+            path.unlink()
+        except OSError:
+            continue
+        removed.append((path, why))
+    return removed
+
+
+def glob_escape(text: str) -> str:
+    """``text`` with the characters ``glob`` treats specially escaped."""
+    return re.sub(r"([*?\[])", r"[\1]", text)

@@ -25,12 +25,17 @@ _ACTIVE: contextvars.ContextVar["Caches | None"] = contextvars.ContextVar(
 )
 
 
+class CacheWarning(RuntimeWarning):
+    """A cache entry was damaged and has been rebuilt, or a cache folder cannot be written to
+    (the run goes on uncached): never a failure of the run (:mod:`diffguide._core.cacheentry`)."""
+
+
 def _table_counters() -> dict[str, int]:
-    return {"hits": 0, "misses": 0, "writes": 0}
+    return {"hits": 0, "misses": 0, "writes": 0, "damaged": 0}
 
 
 def _export_counters() -> dict[str, int]:
-    return {"hits": 0, "exports": 0, "fallbacks": 0, "calls": 0}
+    return {"hits": 0, "exports": 0, "fallbacks": 0, "calls": 0, "damaged": 0}
 
 
 @dataclasses.dataclass(eq=False)
@@ -42,16 +47,20 @@ class Caches:
             ``None``: tables are not cached.
         exports: folder of stored programs (``<key>.jaxexport``, ``<key>.out``); ``None``:
             programs are traced in every process.
-        table_stats: lookups of tables while active: ``hits``, ``misses``, ``writes``.
+        table_stats: lookups of tables while active: ``hits``, ``misses``, ``writes``,
+            ``damaged`` (files that failed their checks, reported and rebuilt).
         export_stats: calls of stored programs while active: ``hits`` (read from disk),
             ``exports`` (traced and written), ``fallbacks`` (the function called directly),
-            ``calls``.
+            ``calls``, ``damaged`` (files that failed their checks, or a stored program that
+            failed to load or run: reported and rebuilt).
+        unwritable: the folders found unwritable while active (each reported once).
     """
 
     tables: Path | None = None
     exports: Path | None = None
     table_stats: dict[str, int] = dataclasses.field(default_factory=_table_counters)
     export_stats: dict[str, int] = dataclasses.field(default_factory=_export_counters)
+    unwritable: set = dataclasses.field(default_factory=set)
     _tokens: list = dataclasses.field(default_factory=list, repr=False)
 
     def __post_init__(self):

@@ -226,6 +226,7 @@ def prepare_runtime(args):
         os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
     import jax
 
+    _one_line_cache_warnings(folder)
     caches = None
     if folder is not None and (not jax_was_loaded or getattr(args, "cache_dir", None)):
         try:
@@ -247,6 +248,41 @@ def prepare_runtime(args):
 
     enable_x64()
     return caches
+
+
+#: how JAX (0.9) begins the warning for a compilation-cache entry it cannot read
+_JAX_READ_ERROR = "Error reading persistent compilation cache entry for '"
+
+
+def _one_line_cache_warnings(folder: Path | None) -> None:
+    """Print each :class:`~diffguide._core.caches.CacheWarning` (a damaged cache entry that was
+    rebuilt, a cache folder that cannot be written) as one line on stderr, ``diffguide: ...``,
+    without the source line Python's default format adds; and where JAX warns that it cannot
+    read one of its compilation-cache entries in ``folder``, remove the damaged entry
+    (:func:`diffguide._core.cachedir.drop_jax_entries`), so that the fresh compilation is
+    stored in its place, and say so in one line. Other warnings are left as they are."""
+    from .._core.caches import CacheWarning
+
+    shown = getattr(warnings.showwarning, "diffguide_shown", warnings.showwarning)
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        out = sys.stderr if file is None else file
+        text = str(message)
+        if issubclass(category, CacheWarning):
+            print(f"diffguide: {text}", file=out)
+        elif folder is not None and text.startswith(_JAX_READ_ERROR):
+            from .._core.cachedir import drop_jax_entries
+
+            name = text[len(_JAX_READ_ERROR):].split("'", 1)[0]
+            for path, why in drop_jax_entries(folder, name) or [(name, text)]:
+                why = why if len(why) <= 200 else why[:197] + "..."
+                print(f"diffguide: JAX compilation cache entry {path} was damaged ({why}); "
+                      "compiled again", file=out)
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    show.diffguide_shown = shown
+    warnings.showwarning = show
 
 
 def cache_max_bytes() -> int:

@@ -14,12 +14,15 @@ first:
   reference-point overrides, gravity, surface load and method — plus the code that computes it:
   the source of :mod:`diffguide.fe` (every module), the diffguide, JAX and jaxlib versions, the
   float width and :data:`FORMAT`. A changed input or a changed code misses.
-- **files**: one ``<key>.npz`` per table holding the :class:`~diffguide.fe.condense.CondensedTable`
-  arrays and the key itself; written to a temporary file in the same folder and renamed into
-  place (atomic: a reader sees a whole file or none; concurrent writers of one key write the
-  same bytes).
-- **robust**: a file that cannot be read, lacks a field, or holds another key is ignored and
-  rewritten; a folder that cannot be written to only disables writing.
+- **files**: one ``<key>.npz`` per table: a header (:mod:`diffguide._core.cacheentry`: the
+  key, :data:`FORMAT`, the diffguide, JAX and jaxlib versions, the inputs' structure and the
+  SHA-256 of the payload), then the :class:`~diffguide.fe.condense.CondensedTable` arrays as
+  ``.npz`` bytes; written to a temporary file in the same folder and renamed into place (atomic:
+  a reader sees a whole file or none; concurrent writers of one key write the same bytes).
+- **robust**: a file that fails a check of its header or checksum, or cannot be read or
+  unpacked, is reported (one :class:`~diffguide._core.caches.CacheWarning`), removed and
+  rewritten with the table computed again; a folder that cannot be written to is reported once
+  and the run goes on uncached.
 
 A traced input (inside ``jit``/``grad``: differentiating w.r.t. the thickness or the node
 coordinates) bypasses the cache. The arrays read back are bit-identical to those written.
@@ -28,20 +31,23 @@ in the active caches' ``table_stats``.
 """
 
 import hashlib
+import io
 from pathlib import Path
 
 import jax
 import numpy as np
 
-from .._core.atomic import atomic_write
+from .._core import cacheentry
 from .._core.cachedir import touch
 from .._core.caches import Caches
 from .._core.fingerprint import code_fingerprint
 
 #: Bumped when the file layout changes.
-FORMAT = 1
+FORMAT = 2
+_KIND = "diffguide.fe.cache"
 _FIELDS = ("K", "f", "R", "r0", "node_modes", "node_u0", "ref_points", "nodes")
 _code_hash: str | None = None  # the source hash, computed once per process
+_inputs: dict[str, dict] = {}  # key -> what it was made from (for the file's header)
 
 
 def _code_version() -> str:
@@ -59,6 +65,7 @@ def table_key(*inputs) -> str | None:
     h.update(_code_version().encode())
     h.update(str(jax.config.read("jax_enable_x64")).encode())
     h.update(str(treedef).encode())
+    arrays = []
     for leaf in leaves:
         if isinstance(leaf, jax.core.Tracer):
             return None
@@ -71,7 +78,15 @@ def table_key(*inputs) -> str | None:
             continue
         h.update(f"a{a.dtype.str}{a.shape}".encode())
         h.update(np.ascontiguousarray(a).tobytes())
-    return h.hexdigest()
+        arrays.append(f"{a.dtype.str}{list(a.shape)}")
+    key = h.hexdigest()
+    _inputs[key] = {
+        "code": _code_version(),
+        "x64": bool(jax.config.read("jax_enable_x64")),
+        "structure": str(treedef),
+        "arrays": arrays,
+    }
+    return key
 
 
 def _path(caches: Caches | None, key: str | None) -> Path | None:
@@ -82,22 +97,26 @@ def _path(caches: Caches | None, key: str | None) -> Path | None:
 
 def load(caches: Caches | None, key: str | None):
     """The table of ``key`` (a :class:`~diffguide.fe.condense.CondensedTable`) in ``caches``,
-    or ``None`` (no table cache, no file, or a file that is unreadable, incomplete or for
-    another key)."""
+    or ``None`` (no table cache, no file, or a damaged one: reported and removed, so that the
+    caller computes the table and :func:`store` writes it again)."""
     path = _path(caches, key)
     if path is None:
         return None
     from .condense import CondensedTable
 
+    stats = caches.table_stats
     try:
-        with np.load(path, allow_pickle=False) as z:
-            if str(z["key"]) != key:
-                raise ValueError("another key")
-            arrays = {k: np.array(z[k]) for k in _FIELDS}
-    except Exception:  # missing, partial, corrupt, old: recompute (and rewrite)
-        caches.table_stats["misses"] += 1
+        found = cacheentry.read(path, _KIND, key, FORMAT)
+        if found is not None:
+            with np.load(io.BytesIO(found[1]), allow_pickle=False) as z:
+                arrays = {k: np.array(z[k]) for k in _FIELDS}
+    except Exception as exc:  # failed a check, or a payload numpy cannot unpack
+        cacheentry.heal(stats, path, exc)
+        found = None
+    if found is None:
+        stats["misses"] += 1
         return None
-    caches.table_stats["hits"] += 1
+    stats["hits"] += 1
     touch(path)  # used now: the cache's size limit removes the least recently used first
     import jax.numpy as jnp
 
@@ -105,16 +124,15 @@ def load(caches: Caches | None, key: str | None):
 
 
 def store(caches: Caches | None, key: str | None, table) -> None:
-    """Write ``table`` under ``key`` in ``caches`` (atomically); silently nothing without a
-    table cache or when the folder cannot be written."""
+    """Write ``table`` under ``key`` in ``caches`` (atomically); nothing without a table cache,
+    and a folder that cannot be written is reported once (the run goes on uncached)."""
     path = _path(caches, key)
     if path is None or any(
         isinstance(v, jax.core.Tracer) for v in jax.tree_util.tree_leaves(table)
     ):
         return
-    arrays = {k: np.asarray(getattr(table, k)) for k in _FIELDS}
-    try:
-        atomic_write(path, lambda tmp: np.savez(tmp, key=np.asarray(key), **arrays))
+    buffer = io.BytesIO()
+    np.savez(buffer, **{k: np.asarray(getattr(table, k)) for k in _FIELDS})
+    data = cacheentry.encode(_KIND, key, FORMAT, buffer.getvalue(), _inputs.get(key))
+    if cacheentry.write(caches, path, data):
         caches.table_stats["writes"] += 1
-    except OSError:
-        pass
