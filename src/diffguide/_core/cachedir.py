@@ -15,6 +15,8 @@ import stat
 import time
 from pathlib import Path
 
+from .compat import jax_cache_decompress
+
 #: What :func:`prune` may remove: (sub-folder, file-name pattern); a leading ``.`` is an atomic
 #: write's temporary file (:mod:`diffguide._core.atomic`).
 ENTRIES = (
@@ -81,17 +83,6 @@ def prune(folder: str | os.PathLike, max_bytes: int) -> tuple[int, int]:
     return removed, freed
 
 
-def _jax_decompress(data: bytes) -> bytes:
-    """JAX's own decompression of a compilation-cache entry (zstd or zlib, as JAX chose)."""
-    try:
-        from jax._src.compilation_cache import decompress_executable
-    except ImportError:  # pragma: no cover - a JAX without it: the zlib it falls back to
-        import zlib
-
-        return zlib.decompress(data)
-    return decompress_executable(data)
-
-
 def drop_jax_entries(folder: str | os.PathLike, module_name: str) -> list[tuple[Path, str]]:
     """Remove the damaged entries of JAX's persistent compilation cache in ``folder`` for the
     compiled function ``module_name`` (files ``<module_name>-<hash>-cache``); returns
@@ -108,7 +99,7 @@ def drop_jax_entries(folder: str | os.PathLike, module_name: str) -> list[tuple[
     bad = []
     for path in found:
         try:
-            _jax_decompress(path.read_bytes())
+            jax_cache_decompress(path.read_bytes())
         except Exception as exc:  # truncated, flipped, foreign: JAX could not read it either
             bad.append((path, f"{type(exc).__name__}: {exc}"))
     if not bad:

@@ -22,6 +22,9 @@ private symbol                                     used for (fallback when it is
 ``equinox._config.EQX_ON_ERROR``                   :func:`eqx_on_error` — part of a stored
                                                    program's key (``$EQX_ON_ERROR``, else
                                                    equinox's default ``"raise"``)
+``jax._src.compilation_cache``                     :func:`jax_cache_decompress` — telling a
+(``.decompress_executable``)                       damaged entry of JAX's compilation cache
+                                                   (zlib, JAX's own fallback)
 =================================================  ==========================================
 """
 
@@ -46,6 +49,12 @@ PRIVATE = (
         "lapack._lapack.initialize",
         "loading jaxlib's CPU LAPACK kernels before a stored program (jax.export) runs: without "
         "it a deserialised program's LAPACK calls crashed the process",
+    ),
+    (
+        "jax._src.compilation_cache",
+        "decompress_executable",
+        "decompressing an entry of JAX's persistent compilation cache to tell a damaged one "
+        "(_core.cachedir.drop_jax_entries)",
     ),
     (
         "equinox._config",
@@ -101,3 +110,15 @@ def eqx_on_error() -> str:
     except ImportError:  # pragma: no cover - moved: what equinox reads, with its default
         return os.environ.get("EQX_ON_ERROR", "raise")
     return str(EQX_ON_ERROR)
+
+
+def jax_cache_decompress(data: bytes) -> bytes:
+    """JAX's own decompression of a compilation-cache entry (zstd or zlib, as JAX chose); zlib,
+    JAX's fallback, where the private function is gone. Raises on a damaged entry."""
+    try:
+        from jax._src.compilation_cache import decompress_executable
+    except ImportError:  # pragma: no cover - moved: the zlib JAX falls back to
+        import zlib
+
+        return zlib.decompress(data)
+    return decompress_executable(data)

@@ -96,14 +96,13 @@ def _path(caches: Caches | None, key: str | None) -> Path | None:
 
 
 def load(caches: Caches | None, key: str | None):
-    """The table of ``key`` (a :class:`~diffguide.fe.condense.CondensedTable`) in ``caches``,
+    """The arrays of the table of ``key`` (``{field: array}`` of a
+    :class:`~diffguide.fe.condense.CondensedTable`, which the caller builds) in ``caches``,
     or ``None`` (no table cache, no file, or a damaged one: reported and removed, so that the
     caller computes the table and :func:`store` writes it again)."""
     path = _path(caches, key)
     if path is None:
         return None
-    from .condense import CondensedTable
-
     stats = caches.table_stats
     try:
         found = cacheentry.read(path, _KIND, key, FORMAT)
@@ -118,9 +117,7 @@ def load(caches: Caches | None, key: str | None):
         return None
     stats["hits"] += 1
     touch(path)  # used now: the cache's size limit removes the least recently used first
-    import jax.numpy as jnp
-
-    return CondensedTable(**{k: jnp.asarray(v) for k, v in arrays.items()})
+    return {k: jax.numpy.asarray(v) for k, v in arrays.items()}
 
 
 def store(caches: Caches | None, key: str | None, table) -> None:

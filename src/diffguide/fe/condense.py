@@ -245,7 +245,7 @@ def condense(
         )
         cached = table_cache.load(caches, key)
         if cached is not None:
-            return cached
+            return CondensedTable(**cached)
     if eager:  # concrete inputs: NumPy arrays throughout
         xp = np
         mesh, plate, nodes, ref_xy, gravity = jax.tree_util.tree_map(
