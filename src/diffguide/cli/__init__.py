@@ -168,11 +168,19 @@ def console_main() -> None:
     """
     import atexit
 
+    _interrupt.install()  # here too: a Ctrl-C during the exit handlers counts as well
     try:
         code = main()
-    except KeyboardInterrupt:  # a second Ctrl-C while the first one is reported
+    except KeyboardInterrupt:  # before main's handler, or while main reports the first one
+        code = None
+    try:
+        atexit._run_exitfuncs()  # logging, JAX and anything else registered
+    except KeyboardInterrupt:
+        pass
+    if code is None or (_interrupt.interrupted() and code != EXIT_INTERRUPTED):
+        with contextlib.suppress(OSError, ValueError):
+            print("diffguide: interrupted", file=sys.stderr)
         code = EXIT_INTERRUPTED
-    atexit._run_exitfuncs()  # logging, JAX and anything else registered
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
