@@ -2,7 +2,7 @@
 
 Runs the bundled fit once to completion (the previous result, and the run's duration ``T``),
 then ``--kills`` runs killed (SIGKILL) and ``--interrupts`` runs interrupted (SIGINT, as Ctrl-C
-sends it) at uniformly random times in ``[start, 1.1 T]``, alternating, each into the same
+sends it) at uniformly random times in ``[start, T]`` (``T`` lowered when a run ends first), alternating, each into the same
 ``--out``; after each, the output folder must hold a complete result (``report.json`` parses,
 ``rails.csv`` present), the previous one or the new one. Every interrupted run must exit 130.
 A last run to completion must leave no hidden ``.<out>.*`` leftovers beside the folder. Prints
@@ -84,13 +84,15 @@ def soak(out: Path, kills: int, interrupts: int, mesh: str = "6x3", start_s: flo
     rng.shuffle(signals)
     for i, sig in enumerate(signals):
         before = (out / "report.json").stat().st_mtime_ns if complete(out) is None else None
+        t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                 text=True)
         tally["runs"] += 1
-        time.sleep(rng.uniform(start_s, max(start_s, 1.1 * duration)))
+        time.sleep(rng.uniform(start_s, max(start_s, duration)))
         if proc.poll() is not None:  # finished before the signal: not a test of it
             tally["finished_first"] += 1
             proc.communicate()
+            duration = min(duration, 0.95 * (time.perf_counter() - t0))  # warm caches: faster
         else:
             proc.send_signal(sig)
             _, err = proc.communicate()
