@@ -6,7 +6,8 @@ sends it), in random order, at uniformly random times in ``[start, T]`` (``T`` l
 run ends first), each into the same ``--out``; after each, the output folder must hold a
 complete result (``report.json`` parses, ``rails.csv`` present), the previous one or the new one.
 Every interrupted run must exit 130. A last run to completion must leave no hidden
-``.<out>.*`` leftovers beside the folder. Prints the tally; exit status 1 when any check failed. Run (on a quiet machine, or ``nice``'d):
+``.<out>.*`` leftovers beside the folder. Prints the tally; exit status 1 when any check
+failed. Run (on a quiet machine, or ``nice``'d):
 
     python bench/kill_soak.py [--kills 100] [--interrupts 100] [--mesh 6x3]
 """
