@@ -13,6 +13,7 @@ import importlib.util
 import os
 import sys
 
+from . import _interrupt
 from ._common import (
     EXIT_BAD_INPUT,
     EXIT_CODES,
@@ -22,6 +23,8 @@ from ._common import (
     normalise_mesh,
     prepare_runtime,
 )
+from ._interrupt import EXIT_INTERRUPTED
+from ._outputs import check_outputs
 
 #: command -> its module in diffguide.cli
 _COMMANDS = {
@@ -106,11 +109,27 @@ def main(argv: list[str] | None = None) -> int:
         # files only: no display needed. A caller that has matplotlib already (a notebook)
         # keeps its backend and its figures: the commands draw on bare figures
         os.environ["MPLBACKEND"] = "Agg"
+    previous = _interrupt.install()  # every Ctrl-C recorded, even one whose exception is lost
+    try:
+        code = _run(args)
+    except KeyboardInterrupt:
+        code = EXIT_INTERRUPTED
+    finally:
+        _interrupt.restore(previous)
+    if _interrupt.interrupted() or code == EXIT_INTERRUPTED:  # the checkpoint at exit
+        print(f"diffguide {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return code
+
+
+def _run(args) -> int:
+    """The command, its errors mapped to exit codes (``KeyboardInterrupt`` goes through)."""
     from ..plotting import bare_figures
     from ..plotting.render import FigureWorker
 
     args.figures = FigureWorker()
     try:
+        check_outputs(args, args.command)  # writable, with space: refused before any work
         if getattr(args, "figure_worker", False) and not getattr(args, "no_plots", False):
             args.figures.start()  # before JAX: it imports matplotlib on the other core meanwhile
         normalise_mesh(args, args.command)
@@ -119,12 +138,13 @@ def main(argv: list[str] | None = None) -> int:
         with caches, bare_figures():  # the commands' figures are files: none made through pyplot
             return int(args.func(args) or 0)
     except (ValueError, OSError) as exc:  # bad input: one line, no traceback
+        if _interrupt.interrupted():  # an error caused by a lost interrupt: 130, said once
+            return EXIT_INTERRUPTED
         print(f"diffguide {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print(f"diffguide {args.command}: interrupted", file=sys.stderr)
-        return 130
     except Exception:  # a bug: the traceback, and exit status 1
+        if _interrupt.interrupted():
+            return EXIT_INTERRUPTED
         import traceback
 
         traceback.print_exc()
@@ -148,8 +168,19 @@ def console_main() -> None:
     """
     import atexit
 
-    code = main()
-    atexit._run_exitfuncs()  # logging, JAX and anything else registered
+    _interrupt.install()  # here too: a Ctrl-C during the exit handlers counts as well
+    try:
+        code = main()
+    except KeyboardInterrupt:  # before main's handler, or while main reports the first one
+        code = None
+    try:
+        atexit._run_exitfuncs()  # logging, JAX and anything else registered
+    except KeyboardInterrupt:
+        pass
+    if code is None or (_interrupt.interrupted() and code != EXIT_INTERRUPTED):
+        with contextlib.suppress(OSError, ValueError):
+            print("diffguide: interrupted", file=sys.stderr)
+        code = EXIT_INTERRUPTED
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()

@@ -31,7 +31,8 @@ exit status:
      nothing written)
   3  a solve did not converge (fit: results written and flagged in report.json; other
      commands: the positions are named and nothing is written)
-  1  internal error (a bug: please report it with the traceback)"""
+  1  internal error (a bug: please report it with the traceback)
+  130  interrupted (Ctrl-C): the outputs are the earlier ones or the complete new ones"""
 
 #: commands that build the table mesh, and so take ``--mesh``
 MESH_COMMANDS = ("table", "simulate", "fit", "montecarlo", "plan")

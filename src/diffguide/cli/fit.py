@@ -2,17 +2,15 @@
 
 import argparse
 import json
-import os
 import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from .._core.atomic import usual_mode
 from ._common import check_tolerances, say
+from ._interrupt import checkpoint
 
 PRESETS = ("majda2012",)
 #: Exit code when the results are written but the elastic fit did not converge.
@@ -210,15 +208,20 @@ def _check_out(out: Path) -> Path:
 
 
 class _Staging:
-    """The output folder, written into a temporary folder next to ``out`` and renamed into
-    place by :meth:`commit` (an earlier output folder is replaced only then); on an exception
-    inside the ``with`` block the temporary folder is removed."""
+    """The output folder, written into a temporary folder next to ``out`` and swapped into
+    place by :meth:`commit` with no gap (:func:`diffguide._core.atomic.replace_dir`: ``out``
+    names the earlier folder or the new one at every instant); on an exception inside the
+    ``with`` block the temporary folder is removed, and a killed run's is removed by the next
+    run (:func:`diffguide._core.atomic.remove_leftovers`). A Ctrl-C, even one whose
+    ``KeyboardInterrupt`` was lost, stops the run before staging and before the commit
+    (:mod:`._interrupt`)."""
 
     def __init__(self, out: Path):
+        from .._core.atomic import staging_dir
+
         self.out = _check_out(out)
-        self.out.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.", suffix=".tmp",
-                                         dir=self.out.parent))
+        checkpoint()
+        self.tmp = staging_dir(self.out)
 
     def __enter__(self) -> "_Staging":
         return self
@@ -236,15 +239,13 @@ class _Staging:
                 content.savefig(self.tmp / name, dpi=110)
 
     def commit(self) -> None:
-        old = None
-        if self.out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.", suffix=".old",
-                                        dir=self.out.parent))
-            os.replace(self.out, old / self.out.name)
-        os.chmod(self.tmp, usual_mode(0o777))  # mkdtemp makes 0700
-        os.replace(self.tmp, self.out)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
+        """Swap the staged folder in, unless a Ctrl-C came (then ``KeyboardInterrupt``, and
+        the earlier folder stays); a Ctrl-C during the swap is held until it is done."""
+        from .._core.atomic import interrupts_deferred, replace_dir
+
+        with interrupts_deferred():
+            checkpoint()
+            replace_dir(self.tmp, self.out)
 
 
 def _write_dir(out: Path, files: dict[str, object]) -> None:
