@@ -18,7 +18,6 @@ from .condense import CondensedTable, RigidPatch, condense, patch_lines
 from .materials import Material
 from .mesh import Rib, TableMesh, table_mesh
 
-
 #: Plausible plate sizes (m), the machine file's ranges: length along X, width along Y and the
 #: equivalent thickness (1 mm to 2 m).
 LENGTH_RANGE = (0.05, 20.0)
@@ -32,8 +31,9 @@ class TableSpec(eqx.Module):
     Arguments:
         length, width: plate size along X and Y (m; within :data:`LENGTH_RANGE`,
             :data:`WIDTH_RANGE`). thickness: equivalent plate thickness (m, within
-            :data:`THICKNESS_RANGE`; may be traced: checked only when concrete). material: plate material (its ``E`` may be traced). nx, ny: uniform
-            mesh divisions along X and Y (refined by footprint and point lines).
+            :data:`THICKNESS_RANGE`; may be traced: checked only when concrete).
+        material: plate material (its ``E`` may be traced). nx, ny: uniform mesh divisions
+            along X and Y (refined by footprint and point lines).
     """
 
     length: float = eqx.field(static=True)

@@ -286,9 +286,9 @@ def fit_rails(
         meas: merged measurements (:func:`diffguide.read_measurements`; a path is refused
             with a ``TypeError``).
         knot_spacing: requested knot spacing (m), within :data:`.problem.KNOT_SPACING_RANGE`
-            (a value outside is refused, with a hint when it looks like mm); default the carriage's loaded length
-            (``n·p``, 48 mm for ``majda2012``): shorter wavelengths are averaged out by the
-            carriage, so finer knots only add undetermined unknowns.
+            (a value outside is refused, with a hint when it looks like mm); default the
+            carriage's loaded length (``n·p``, 48 mm for ``majda2012``): shorter wavelengths
+            are averaged out by the carriage, so finer knots only add undetermined unknowns.
         lam: regularisation weight; default chosen by ``criterion`` (:mod:`.weight`).
         criterion: ``"ml"`` (marginal likelihood) or ``"gcv"``.
         x_ref: reference position of the model (m), within

@@ -29,7 +29,6 @@ from .errors import ERROR_MEANINGS as ERROR_MEANINGS  # names, meanings, units: 
 from .errors import ERROR_NAMES as ERROR_NAMES
 from .errors import error_columns, to_user
 
-
 #: Plausible table positions and reference positions (m): half the longest stroke a machine
 #: file allows (50 m), either side of x = 0. Concrete positions outside are refused (with a hint
 #: when they look like mm); the machine's own stroke is the caller's to respect.
