@@ -295,7 +295,8 @@ def fit_rails(
             :data:`~diffguide.machine.kinematics.POSITION_RANGE`; the result does not depend
             on it.
         rtol: LM tolerance on the Gauss–Newton decrement, relative to the χ² per datum.
-            max_steps: LM step limit per pass, an integer >= 1.
+            max_steps: LM step limit per pass, an integer >= 0 (0: the start only, reported
+            as not converged).
         method: ``"lm"`` (through the nonlinear model) or ``"linear"`` (linearised at straight
             rails and solved once: the classical linear inversion).
         reject_outliers: zero-weight merged values beyond :data:`OUTLIER_Z` and refit once.
@@ -318,7 +319,7 @@ def fit_rails(
         raise ValueError(f"waviness must be a finite RMS >= 0 m, got {waviness!r}")
     instance("meas", meas, Measurements,
              "pass diffguide.read_measurements(path) (or Measurements.from_arrays(...))")
-    max_steps = positive_int("max_steps", max_steps)
+    max_steps = positive_int("max_steps", max_steps, 0)  # 0: the start only (as the CLI)
     if not (np.isfinite(rtol) and rtol > 0):
         raise ValueError(f"rtol must be a finite tolerance > 0, got {rtol!r}")
     if lam is not None and not (np.isfinite(lam) and lam > 0):
