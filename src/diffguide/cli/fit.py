@@ -50,6 +50,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="machine coordinate (mm) of the table position x = 0, subtracted from "
                    "the file's positions and from the compensation table's; default: 0 for the "
                    "long layout, the middle of the measured targets for the wide one")
+    p.add_argument("--allow-many-positions", action="store_true",
+                   help="merge a file with more than 1000 distinct table positions (refused "
+                   "otherwise: thousands, nearly one per reading, is what swapped position and "
+                   "value columns look like)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (replaced)")
     p.add_argument("--knot-spacing-mm", type=float, default=None,
                    help="B-spline knot spacing of the profiles (mm); default: the carriage's "
@@ -311,7 +315,8 @@ def _read(args, cfg, info: dict):
     from ..io.importers import read_any
 
     notes: list[str] = []
-    meas = read_any(args.measurements, args.layout, args.x0_mm, notes, info)
+    meas = read_any(args.measurements, args.layout, args.x0_mm, notes, info,
+                    allow_many_positions=args.allow_many_positions)
     for n in notes:
         say(args, f"note: {n}")
     _check_inputs(meas, args, cfg)

@@ -35,6 +35,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "reference, the middle of the stroke); default: 0 for the long layout (its "
         "position_mm is x already), the middle of the measured targets for the wide one",
     )
+    p.add_argument("--allow-many-positions", action="store_true",
+                   help="merge a file with more than 1000 distinct table positions (refused "
+                   "otherwise: thousands, nearly one per reading, is what swapped position and "
+                   "value columns look like)")
     p.add_argument("--out", required=True, metavar="FILE.csv", help="canonical long CSV to write")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
@@ -48,7 +52,8 @@ def run(args) -> int:
 
     notes: list[str] = []
     readings = import_readings(args.input, args.layout, args.x0_mm, notes)
-    meas = merge_readings(readings, source=args.input, notes=notes)  # validates what fit sees
+    meas = merge_readings(readings, source=args.input, notes=notes,  # validates what fit sees
+                          allow_many_positions=args.allow_many_positions)
     text = format_long(readings, comment=f"imported from {args.input} by diffguide import")
     atomic_write_text(args.out, text)
     if not args.quiet:

@@ -11,20 +11,29 @@ from collections.abc import Sequence
 
 import equinox as eqx
 
+from .._core.checks import length as _length
 from .._core.types import Array, Float
 from .assemble import PlateSection
 from .condense import CondensedTable, RigidPatch, condense, patch_lines
 from .materials import Material
 from .mesh import Rib, TableMesh, table_mesh
 
+#: Plausible plate sizes (m), the machine file's ranges: length along X, width along Y and the
+#: equivalent thickness (1 mm to 2 m).
+LENGTH_RANGE = (0.05, 20.0)
+WIDTH_RANGE = (0.05, 10.0)
+THICKNESS_RANGE = (1e-3, 2.0)
+
 
 class TableSpec(eqx.Module):
     """The table plate, SI units (the ``[table]`` section of a machine file).
 
     Arguments:
-        length, width: plate size along X and Y (m). thickness: equivalent plate thickness (m;
-            may be traced). material: plate material (its ``E`` may be traced). nx, ny: uniform
-            mesh divisions along X and Y (refined by footprint and point lines).
+        length, width: plate size along X and Y (m; within :data:`LENGTH_RANGE`,
+            :data:`WIDTH_RANGE`). thickness: equivalent plate thickness (m, within
+            :data:`THICKNESS_RANGE`; may be traced: checked only when concrete).
+        material: plate material (its ``E`` may be traced). nx, ny: uniform mesh divisions
+            along X and Y (refined by footprint and point lines).
     """
 
     length: float = eqx.field(static=True)
@@ -37,6 +46,9 @@ class TableSpec(eqx.Module):
     def __check_init__(self):
         if not (self.length > 0 and self.width > 0):
             raise ValueError(f"length and width must be > 0 m, got {self.length}, {self.width}")
+        _length("length", self.length, *LENGTH_RANGE)
+        _length("width", self.width, *WIDTH_RANGE)
+        _length("thickness", self.thickness, *THICKNESS_RANGE)
         for name in ("nx", "ny"):
             n = getattr(self, name)
             if isinstance(n, bool) or int(n) != n or n < 1:
@@ -82,7 +94,8 @@ def table_model(
     """A rectangular table on carriages at ``carriage_x × rail_y`` (and a nut), SI units.
 
     Args:
-        length, width: plate size (m). thickness: plate thickness (m; may be traced).
+        length, width: plate size (m). thickness: plate thickness (m, within
+            :data:`THICKNESS_RANGE`; may be traced).
         material: plate material. nx, ny: uniform divisions (refined by footprint/point lines).
         rail_y: Y of each rail (m). carriage_x: X of the carriages on each rail (m).
         footprint: carriage footprint (X, Y) bolted to the underside (m).
@@ -96,6 +109,7 @@ def table_model(
         :class:`TableModel` with patches ``C{rail}{carriage}`` (rail by rail, carriages in the
         order of ``carriage_x``), then ``nut``.
     """
+    _length("thickness", thickness, *THICKNESS_RANGE)  # concrete values only
     hx, hy = 0.5 * footprint[0], 0.5 * footprint[1]
     patches = [
         RigidPatch(x=cx, y=ry, half_x=hx, half_y=hy, name=f"C{i + 1}{j + 1}")

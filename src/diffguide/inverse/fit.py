@@ -87,6 +87,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.checks import instance, mm_hint, positive_int
 from .._core.precision import require_x64
 from ..guideway.rails import SplineRail
 from .basis import RailBasis
@@ -185,20 +186,23 @@ class RailFit(eqx.Module):
         """The weight criterion's score (kept for the report; NaN for a given λ)."""
         return self.weight.score
 
-    def profiles(self, s) -> tuple[np.ndarray, np.ndarray]:
+    def profiles(self, s, *, extrapolate: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Profiles and their posterior σ at ``s`` (m): two arrays (m) of shape
         ``(2 rails, 2 planes) + np.shape(s)``, i.e. ``(2, 2, len(s))`` for 1-D ``s`` and
         ``(2, 2)`` for a scalar; planes ``(vertical, horizontal)``.
         ``σ² = bᵀ Cov b + waviness²`` (``b`` the basis functions at ``s``).
 
-        ``s`` must be finite (``ValueError`` otherwise) and a scalar or 1-D. Outside the fitted
-        range ``[basis.start, basis.end]`` the end segments' cubics are continued (an
+        ``s`` must be finite (``ValueError`` otherwise) and a scalar or 1-D, and within the fitted
+        range ``[basis.start, basis.end]`` (m; ``ValueError`` naming the range otherwise). With
+        ``extrapolate=True`` the end segments' cubics are continued outside it (an
         extrapolation the data do not support)."""
         s = np.asarray(s, dtype=float)
         if s.ndim > 1:
             raise ValueError(f"s must be a scalar or a 1-D array (m), got shape {s.shape}")
         if not np.all(np.isfinite(s)):
             raise ValueError(f"s must be finite (m); it holds {s[~np.isfinite(s)][:3]}")
+        if not extrapolate:
+            _check_in_range(s, self.basis.start, self.basis.end)
         shape = s.shape
         B = self.basis.matrix(np.atleast_1d(s))
         n = self.basis.n_coeffs
@@ -217,11 +221,12 @@ class RailFit(eqx.Module):
         return tuple(SplineRail(self.basis.start, self.basis.spacing, jnp.asarray(c[r, 0]),
                                 jnp.asarray(c[r, 1])) for r in range(2))
 
-    def to_dataframe(self, s=None):
+    def to_dataframe(self, s=None, *, extrapolate: bool = False):
         """The profiles as a ``pandas.DataFrame`` in user units, the columns of ``rails.csv``:
         ``rail, s_mm, vertical_um, vertical_sigma_um, horizontal_um, horizontal_sigma_um`` at
         ``s`` (m; a scalar or 1-D, finite; default every 2 mm over the fitted range): one row
-        per rail and ``s`` (a scalar ``s`` gives two rows). Needs the ``[pandas]`` extra."""
+        per rail and ``s`` (a scalar ``s`` gives two rows); ``extrapolate`` as in
+        :meth:`profiles`. Needs the ``[pandas]`` extra."""
         from .._core.frames import require_pandas
 
         pd = require_pandas()
@@ -230,7 +235,7 @@ class RailFit(eqx.Module):
         s = np.asarray(s, dtype=float)
         if s.ndim == 0:
             s = s[None]
-        val, sig = self.profiles(s)
+        val, sig = self.profiles(s, extrapolate=True) if extrapolate else self.profiles(s)
         parts = []
         for r in range(2):
             parts.append(pd.DataFrame({
@@ -239,6 +244,22 @@ class RailFit(eqx.Module):
                 "horizontal_um": val[r, 1] * 1e6, "horizontal_sigma_um": sig[r, 1] * 1e6,
             }))
         return pd.concat(parts, ignore_index=True)
+
+
+#: ``s`` within this distance (m) of the fitted range counts as inside it (round-off of a grid).
+_S_TOL = 1e-9
+
+
+def _check_in_range(s: np.ndarray, lo: float, hi: float) -> None:
+    """Refuse ``s`` (m) outside ``[lo, hi]`` with the range in m and mm, and the mm hint."""
+    out = s[(s < lo - _S_TOL) | (s > hi + _S_TOL)]
+    if out.size:
+        v = float(out.flat[0])
+        raise ValueError(
+            f"s must lie within the fitted range [{lo:g}, {hi:g}] m ({lo * 1e3:g} .. "
+            f"{hi * 1e3:g} mm), got {v:g} m{mm_hint(v, lo, hi)} (extrapolate=True continues "
+            "the end segments, which the data do not support)"
+        )
 
 
 def fit_rails(
@@ -262,15 +283,20 @@ def fit_rails(
             :class:`~.structure.MachineFamily` (structure estimated), whose points are
             ``meas.point_names`` (same order); ``machine.with_rigid_table()`` gives the classical
             rigid-table inversion.
-        meas: merged measurements (:func:`diffguide.measurements.read_measurements`).
-        knot_spacing: requested knot spacing (m); default the carriage's loaded length
-            (``n·p``, 48 mm for ``majda2012``): shorter wavelengths are averaged out by the
-            carriage, so finer knots only add undetermined unknowns.
+        meas: merged measurements (:func:`diffguide.read_measurements`; a path is refused
+            with a ``TypeError``).
+        knot_spacing: requested knot spacing (m), within :data:`.problem.KNOT_SPACING_RANGE`
+            (a value outside is refused, with a hint when it looks like mm); default the
+            carriage's loaded length (``n·p``, 48 mm for ``majda2012``): shorter wavelengths
+            are averaged out by the carriage, so finer knots only add undetermined unknowns.
         lam: regularisation weight; default chosen by ``criterion`` (:mod:`.weight`).
         criterion: ``"ml"`` (marginal likelihood) or ``"gcv"``.
-        x_ref: reference position of the model (m); the result does not depend on it.
+        x_ref: reference position of the model (m), within
+            :data:`~diffguide.machine.kinematics.POSITION_RANGE`; the result does not depend
+            on it.
         rtol: LM tolerance on the Gauss–Newton decrement, relative to the χ² per datum.
-            max_steps: LM step limit per pass.
+            max_steps: LM step limit per pass, an integer >= 0 (0: the start only, reported
+            as not converged).
         method: ``"lm"`` (through the nonlinear model) or ``"linear"`` (linearised at straight
             rails and solved once: the classical linear inversion).
         reject_outliers: zero-weight merged values beyond :data:`OUTLIER_Z` and refit once.
@@ -281,14 +307,23 @@ def fit_rails(
             carriage); it is added in quadrature to every profile σ. Default 0: the bands then
             cover only what the knot grid resolves.
 
-    Raises ``ValueError`` for inputs that cannot be fitted at all (mismatched points, fewer data
-    than channels, a model that does not converge for straight rails); everything after that
+    Raises ``ValueError`` for inputs that cannot be fitted at all (arguments out of range,
+    mismatched points, fewer data than channels, a model that does not converge for straight
+    rails; ``TypeError`` for measurements that are not :class:`.data.Measurements`) before any
+    work; everything after that
     returns a :class:`RailFit` (see ``converged`` and ``message``).
     """
     if method not in ("lm", "linear"):
         raise ValueError(f"method must be 'lm' or 'linear', got {method!r}")
     if not (np.isfinite(waviness) and waviness >= 0.0):
         raise ValueError(f"waviness must be a finite RMS >= 0 m, got {waviness!r}")
+    instance("meas", meas, Measurements,
+             "pass diffguide.read_measurements(path) (or Measurements.from_arrays(...))")
+    max_steps = positive_int("max_steps", max_steps, 0)  # 0: the start only (as the CLI)
+    if not (np.isfinite(rtol) and rtol > 0):
+        raise ValueError(f"rtol must be a finite tolerance > 0, got {rtol!r}")
+    if lam is not None and not (np.isfinite(lam) and lam > 0):
+        raise ValueError(f"lam must be a finite weight > 0 (or None: chosen), got {lam!r}")
     require_x64("fit_rails")
     problem = build_problem(machine, meas, knot_spacing=knot_spacing, lam=lam,
                             criterion=criterion, x_ref=x_ref)

@@ -44,6 +44,12 @@ zero — and position:
    copies, for the same information.) Real runs agree exactly at a position only when their
    noise is below the display step; at 80 % of the positions it is well below it, and the
    rounding, which the runs share, then dominates the mean's error.
+
+Before any of this, a file with more than :data:`MAX_POSITIONS` distinct table positions is
+refused unless confirmed (``allow_many_positions``): the layouts of the paper and of ISO 230-2
+read tens to a few hundred positions, and thousands — nearly one per reading — is what a file
+with the position and value columns swapped looks like (each reading's value becomes a
+position), which would otherwise run a fit of thousands of equilibria before failing.
 """
 
 import math
@@ -68,6 +74,26 @@ SCATTER_FLOOR_FRACTION = 0.1
 MIN_RUNS_FOR_OUTLIERS = 3
 #: Distance from the median of the other readings (robust σ) beyond which a reading is an outlier.
 OUTLIER_Z = 6.0
+#: Most distinct table positions (to 1 µm) merged without confirmation: the paper-scale and
+#: ISO 230-2 layouts read tens to a few hundred (module docstring).
+MAX_POSITIONS = 1000
+
+
+def check_grid(readings, source: str, allow_many_positions: bool = False) -> None:
+    """Refuse (``ValueError``) more than :data:`MAX_POSITIONS` distinct positions (to 1 µm)
+    among ``readings`` unless ``allow_many_positions``, saying what looks wrong."""
+    if allow_many_positions:
+        return
+    n = len({round(r.position * 1e6) for r in readings})
+    if n <= MAX_POSITIONS:
+        return
+    swapped = (" — nearly one per reading: are the position and value columns swapped?"
+               if n >= 0.5 * len(readings) else "")
+    raise ValueError(
+        f"{source}: {n} distinct positions from {len(readings)} readings{swapped} "
+        f"(measurement layouts read tens to a few hundred; more than {MAX_POSITIONS} is "
+        "refused unless confirmed: --allow-many-positions, or allow_many_positions=True)"
+    )
 
 
 def quantity_kind(quantity: str) -> str:
@@ -294,15 +320,19 @@ def _rows(groups, names, scatter, floored, copies, res, source):
     return cols, row_of
 
 
-def merge_readings(readings, source: str = "<readings>",
-                   notes: list | None = None) -> Measurements:
+def merge_readings(readings, source: str = "<readings>", notes: list | None = None, *,
+                   allow_many_positions: bool = False) -> Measurements:
     """Merge runs and directions (see the module docstring) into :class:`~.data.Measurements`.
+
+    More than :data:`MAX_POSITIONS` distinct positions raise ``ValueError`` before any merging
+    unless ``allow_many_positions`` (:func:`check_grid`).
 
     ``notes`` (a list) receives a line for every channel whose pooled scatter was raised to its
     floor (step 3) and for every channel merged as copies of one run (step 4)."""
     readings = tuple(readings)
     if not readings:
         raise ValueError(f"{source}: no measurements")
+    check_grid(readings, source, allow_many_positions)
     names, xy = _points(readings)
     groups, rejected = _groups(readings, names)
     ss, dof, repeated, same = _scatter_sums(groups)

@@ -20,8 +20,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.checks import length
+from ..fe.table import THICKNESS_RANGE
 from ..guideway.rails import bspline_matrix
 from ..machine.equilibrium import Machine
+from ..machine.kinematics import POSITION_RANGE
 from .basis import RailBasis, null_space_basis
 from .data import QUANTITIES, Measurements
 from .model import _linearise, _Problem
@@ -33,6 +36,11 @@ _log = logging.getLogger("diffguide")
 LEAD_KNOT_SPACING = 0.1
 #: Ridge on the lead-error coefficients (1/µm): a prior σ of 1 mm, i.e. none in practice.
 LEAD_RIDGE = 1e-3
+#: Plausible knot spacings (m): from 1 mm (finer than any carriage resolves) to 5 m.
+KNOT_SPACING_RANGE = (1e-3, 5.0)
+#: Plausible range of a preload prior (fraction of the carriage's dynamic capacity C), the
+#: machine file's ``[carriage] preload_fraction`` range.
+PRELOAD_RANGE = (1e-4, 0.5)
 _EXX = QUANTITIES.index("EXX")
 _STRAIGHTNESS = (QUANTITIES.index("EYX"), QUANTITIES.index("EZX"))
 #: What a failed equilibrium raises inside the compiled model (equinox's runtime checks under
@@ -166,8 +174,19 @@ def build_problem(machine, meas: Measurements, *, knot_spacing: float | None,
             f"the machine's points {base.point_names} differ from the measurement points "
             f"{meas.point_names}; build the machine with points=... from the measurements"
         )
+    length("x_ref", x_ref, *POSITION_RANGE)
+    length("meas.position", meas.position, *POSITION_RANGE)
     if knot_spacing is None:
         knot_spacing = base.carriage.length
+        if not knot_spacing >= KNOT_SPACING_RANGE[0]:
+            raise ValueError(
+                f"the default knot spacing, the carriage's loaded length, is {knot_spacing:g} m "
+                f"(a carriage of {base.carriage.n_elements} element(s) per row; at least 2 are "
+                "needed): give knot_spacing (m) or a carriage with elements_per_row >= 2"
+            )
+    else:
+        length("knot_spacing", knot_spacing, *KNOT_SPACING_RANGE)
+    _check_priors(family)
     basis = RailBasis.covering(*visited_range(base, meas.position), knot_spacing)
     # the common slope of both rails in a plane is invisible: pitch and yaw are relative to
     # their reference position, and a straightness channel's slope is its alignment (fitted)
@@ -193,6 +212,27 @@ def build_problem(machine, meas: Measurements, *, knot_spacing: float | None,
         fix_slope=fix_slope, lead_basis=lead_basis, alignment_channels=align_chan,
         n_lead=lead_B.shape[1], n_l=n_l,
     )
+
+
+def _check_priors(family: MachineFamily) -> None:
+    """Refuse structure priors outside the plausible ranges (thickness in m, preload as a
+    fraction of C), naming the prior and the range."""
+    priors = family.priors
+    if priors is None:
+        return
+    for name, (lo, hi), unit in (("thickness", THICKNESS_RANGE, "m"),
+                                 ("preload", PRELOAD_RANGE, "of C")):
+        prior = getattr(priors, name, None)
+        if prior is None:
+            continue
+        if name == "thickness":
+            for part in ("value", "lo", "hi"):
+                length(f"the thickness prior's {part}", getattr(prior, part), lo, hi)
+        elif not (lo <= prior.lo and prior.hi <= hi):
+            raise ValueError(
+                f"the preload prior's range ({prior.lo:g}, {prior.hi:g}) must lie within "
+                f"[{lo:g}, {hi:g}] {unit}"
+            )
 
 
 def visited_range(machine: Machine, positions) -> tuple[float, float]:

@@ -50,7 +50,7 @@ def _check(value, spec, where):
         if isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f"{where}: must be an integer in [{lo}, {hi}], got {value!r}")
         if not lo <= value <= hi:
-            raise ValueError(f"{where}: {value} outside the allowed range [{lo}, {hi}]")
+            raise ValueError(f"{where}: {value} outside the allowed range [{lo}, {hi}] ({help_})")
         return value
     if kind == "float":
         v = _number(value, where, "value")

@@ -98,7 +98,7 @@ KEYS: dict[str, dict[str, tuple]] = {
             "carriage.elements_per_row",
             None,
             "int",
-            1,
+            2,
             200,
             "rolling elements per row",
         ),

@@ -280,11 +280,15 @@ def read_any(
     x0_mm: float | None = None,
     notes: list | None = None,
     info: dict | None = None,
+    *,
+    allow_many_positions: bool = False,
 ):
     """Read and merge a measurement file in any supported layout
-    (:class:`~diffguide.inverse.data.Measurements`, SI units)."""
+    (:class:`~diffguide.inverse.data.Measurements`, SI units; ``allow_many_positions``: see
+    :func:`~diffguide.inverse.merge.merge_readings`)."""
     return merge_readings(
-        import_readings(path, layout, x0_mm, notes, info), source=os.fspath(path), notes=notes
+        import_readings(path, layout, x0_mm, notes, info), source=os.fspath(path), notes=notes,
+        allow_many_positions=allow_many_positions,
     )
 
 

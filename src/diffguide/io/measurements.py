@@ -320,10 +320,14 @@ def _header_line(text: str) -> int:
 
 
 def read_measurements(path: str | os.PathLike, x0_mm: float = 0.0,
-                      notes: list | None = None) -> Measurements:
+                      notes: list | None = None, *,
+                      allow_many_positions: bool = False) -> Measurements:
     """Read, validate and merge a long measurement CSV (see the module docstring); SI units.
+    More than :data:`~diffguide.inverse.merge.MAX_POSITIONS` distinct positions (the position and
+    value columns swapped, as a rule) raise ``ValueError`` unless ``allow_many_positions``.
     Other layouts: :func:`diffguide.io.importers.read_any`."""
-    return merge_readings(read_readings(path, x0_mm, notes), source=os.fspath(path), notes=notes)
+    return merge_readings(read_readings(path, x0_mm, notes), source=os.fspath(path), notes=notes,
+                          allow_many_positions=allow_many_positions)
 
 
 def format_csv(rows: list[dict], columns: tuple[str, ...]) -> str:

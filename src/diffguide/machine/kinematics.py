@@ -11,6 +11,7 @@ straightness (m inside, µm at the edges); EAX roll, EBX pitch, ECX yaw (rad ins
 at the edges), each positive along/about +X, +Y, +Z (right-handed).
 """
 
+import functools
 import operator
 
 import equinox as eqx
@@ -18,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import concrete
+from .._core.checks import concrete, length
 from .._core.result import RESULTS
 from .._core.rigid import transfer
 from .._core.types import Array, Float
@@ -27,6 +28,11 @@ from .equilibrium import Machine, _error_if_failed, equilibrium_traced, point_mo
 from .errors import ERROR_MEANINGS as ERROR_MEANINGS  # names, meanings, units: one table
 from .errors import ERROR_NAMES as ERROR_NAMES
 from .errors import error_columns, to_user
+
+#: Plausible table positions and reference positions (m): half the longest stroke a machine
+#: file allows (50 m), either side of x = 0. Concrete positions outside are refused (with a hint
+#: when they look like mm); the machine's own stroke is the caller's to respect.
+POSITION_RANGE = (-25.0, 25.0)
 
 
 class JointErrors(eqx.Module):
@@ -138,8 +144,9 @@ def joint_errors_traced(
         machine: the machine (``machine.with_rigid_table()`` for the rigid-table comparison).
         rails: error profiles of rail 1 and rail 2, a pair (a single profile is refused:
             ``TypeError``).
-        positions: table positions (m), a scalar or 1-D (2-D is refused: ``ValueError``).
-        x_ref: reference position (m), a scalar.
+        positions: table positions (m), a scalar or 1-D (2-D is refused: ``ValueError``);
+            :func:`joint_errors` refuses concrete ones outside :data:`POSITION_RANGE`.
+        x_ref: reference position (m), a scalar (the same range).
         throw: raise (``eqx.error_if``) when any position (or the reference) fails, instead of
             only reporting it in ``result``.
         condensed: the equilibrium's Newton solve on the contact DOF (``True``: the faster
@@ -171,10 +178,18 @@ def joint_errors_traced(
     )
 
 
-#: :func:`joint_errors_traced`, compiled (the function to call). Inside another traced function
-#: call ``joint_errors_traced`` itself: a nested ``jit`` is traced again by every transformation
-#: around it (``jvp``, ``vmap``), which made the fit's linearisation ~0.5 s slower to trace.
-joint_errors = eqx.filter_jit(joint_errors_traced)
+_joint_errors_jit = eqx.filter_jit(joint_errors_traced)
+
+
+@functools.wraps(joint_errors_traced)
+def joint_errors(machine, rails, positions, x_ref=0.0, **kwargs) -> JointErrors:
+    # :func:`joint_errors_traced`, compiled (the function to call), after refusing concrete
+    # positions and x_ref outside POSITION_RANGE. Inside another traced function call
+    # ``joint_errors_traced`` itself: a nested ``jit`` is traced again by every transformation
+    # around it (``jvp``, ``vmap``), which made the fit's linearisation slower to trace.
+    length("positions", positions, *POSITION_RANGE)  # traced values pass unchecked
+    length("x_ref", x_ref, *POSITION_RANGE)
+    return _joint_errors_jit(machine, rails, positions, x_ref, **kwargs)
 
 
 def error_field(machine: Machine, errors: JointErrors, index: int):

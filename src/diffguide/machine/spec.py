@@ -19,12 +19,20 @@ from collections.abc import Mapping
 
 import equinox as eqx
 
+from .._core.checks import length, positive_int
 from .._core.types import Array, Float
 from ..fe.mesh import Rib
 from ..fe.table import TableSpec
 from ..guideway.carriage import CarriageSpec
 
 Pair = tuple[float, float]
+#: Plausible carriage footprints and nut flanges (m), each side: the machine file's 5 mm .. 1 m.
+FOOTPRINT_RANGE = (5e-3, 1.0)
+#: Plausible X strokes (m): the machine file's 1 mm .. 50 m.
+STROKE_RANGE = (1e-3, 50.0)
+#: Fewest rolling elements per row the model takes: the carriage's loaded length (``n·p``, the
+#: default knot spacing of a fit) and its pitch stiffness need two.
+MIN_ELEMENTS_PER_ROW = 2
 
 
 def _pair(value) -> Pair:
@@ -43,7 +51,8 @@ class GuidewaySpec(eqx.Module):
     Arguments:
         rail_y: Y of rail 1 and rail 2 (m), rail 1 first (the smaller Y).
         carriage_x: X of the two carriages on each rail, from the table centre (m).
-        footprint: carriage footprint bolted to the table, (X, Y) (m).
+        footprint: carriage footprint bolted to the table, (X, Y) (m; each within
+            :data:`FOOTPRINT_RANGE`).
         carriage_spacing: ``None``, or the distance between the two carriages on each rail (m;
             may be traced): moves the carriages about the centre of ``carriage_x`` keeping the
             mesh topology (:func:`~diffguide.machine.build.build_machine`).
@@ -55,6 +64,8 @@ class GuidewaySpec(eqx.Module):
     carriage_spacing: float | Float[Array, ""] | None = None
 
     def __check_init__(self):
+        for k, side in enumerate(self.footprint):
+            length(f"footprint[{k}]", side, *FOOTPRINT_RANGE)
         if not self.rail_y[0] < self.rail_y[1]:
             raise ValueError(f"rail_y: rail 1 must be at the smaller Y, got {self.rail_y}")
         if not self.carriage_x[1] - self.carriage_x[0] >= self.footprint[0]:
@@ -90,7 +101,12 @@ class MachineSpec(eqx.Module):
         points: control points on the table top, ``{name: (x, y)}`` (m; stored as a tuple of
             pairs, in order).
         ribs: ribs under the plate (:class:`~diffguide.fe.mesh.Rib`, SI).
-        gravity: g (m/s²), along −Z. stroke: X stroke, symmetric about x = 0 (m).
+        gravity: g (m/s²), along −Z. stroke: X stroke, symmetric about x = 0 (m, within
+            :data:`STROKE_RANGE`).
+
+    The carriage needs ``elements_per_row >= 2`` (:data:`MIN_ELEMENTS_PER_ROW`); the table's
+    sizes are checked by :class:`~diffguide.fe.table.TableSpec`, the footprints, stroke and
+    points here, each refusal naming the field and its range in m.
     """
 
     table: TableSpec
@@ -105,6 +121,9 @@ class MachineSpec(eqx.Module):
     def __check_init__(self):
         if not self.points:
             raise ValueError("points: at least one control point is needed")
+        length("stroke", self.stroke, *STROKE_RANGE)
+        positive_int("carriage.elements_per_row", self.carriage.elements_per_row,
+                     MIN_ELEMENTS_PER_ROW)
         names = [n for n, _ in self.points]
         if len(set(names)) != len(names):
             raise ValueError(f"points: names must be unique, got {names}")
