@@ -136,6 +136,17 @@ def test_fit_x_ref_in_mm_is_refused(machine, meas):
         fit_rails(machine, meas, x_ref=300.0)
 
 
+def test_fit_positions_beyond_the_stroke_are_refused(machine, meas):
+    """The audit's positions at 5 m: the bundled readings' positions × 14 (the majda2012 stroke
+    is 700 mm, ±0.35 m; the readings reach ±0.35 m) are refused naming the stroke; the machine
+    knows its stroke from its specification."""
+    assert machine.stroke == pytest.approx(0.7)
+    far = dataclasses.replace(meas, position=meas.position * 14.0)
+    with pytest.raises(ValueError, match=r"meas\.position reaches -?4\.9 m, beyond the "
+                                         r"machine's stroke \[-0\.35, 0\.35\] m"):
+        fit_rails(machine, far)
+
+
 @pytest.mark.parametrize("kw", [{"lam": -1.0}, {"lam": np.nan}, {"rtol": 0.0}])
 def test_fit_weights_and_tolerances_must_be_positive(machine, meas, kw):
     name = next(iter(kw))

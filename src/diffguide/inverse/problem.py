@@ -161,6 +161,21 @@ class FitProblem(eqx.Module):
                             criterion or self.criterion)
 
 
+def _check_stroke(machine, position) -> None:
+    """Refuse measured positions (m) beyond the machine's stroke ``±stroke/2``, where the
+    machine knows it (built from a specification), naming the range in m and mm."""
+    stroke = getattr(machine, "stroke", None)
+    x = np.asarray(position, dtype=float)
+    if stroke is None or x.size == 0 or np.max(np.abs(x)) <= stroke / 2 + 1e-9:
+        return
+    worst = float(x[np.argmax(np.abs(x))])
+    hint = "" if abs(worst) < 1.0 else f": did you mean {worst:g} mm = {worst * 1e-3:g} m?"
+    raise ValueError(
+        f"meas.position reaches {worst:g} m, beyond the machine's stroke "
+        f"[{-stroke / 2:g}, {stroke / 2:g}] m (±{stroke / 2 * 1e3:g} mm){hint}"
+    )
+
+
 def build_problem(machine, meas: Measurements, *, knot_spacing: float | None,
                   lam: float | None, criterion: str, x_ref: float) -> FitProblem:
     """The :class:`FitProblem` of :func:`~.fit.fit_rails`' arguments (their units): the knot
@@ -176,6 +191,7 @@ def build_problem(machine, meas: Measurements, *, knot_spacing: float | None,
         )
     length("x_ref", x_ref, *POSITION_RANGE)
     length("meas.position", meas.position, *POSITION_RANGE)
+    _check_stroke(base, meas.position)
     if knot_spacing is None:
         knot_spacing = base.carriage.length
         if not knot_spacing >= KNOT_SPACING_RANGE[0]:

@@ -189,5 +189,6 @@ def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
         points_xy=np.asarray(model.points),
         screw_EA=s.E * np.pi * s.core_diameter**2 / 4,
         screw_length_ref=s.free_length_at_ref,
+        stroke=None if spec.stroke is None else float(spec.stroke),
     )
 

@@ -64,6 +64,8 @@ class Machine(eqx.Module):
         screw_length_ref: free length of the screw from its fixed bearing to the nut at x = 0
             (m); the free length at position ``x`` is ``screw_length_ref + x``.
         rigid: infinitely stiff table (see the module docstring).
+        stroke: the X stroke (m), symmetric about the reference position, when known (a machine
+            built from a specification); measured positions beyond it are refused by the fit.
     """
 
     table: CondensedTable
@@ -75,6 +77,7 @@ class Machine(eqx.Module):
     screw_EA: float | Float[Array, ""]
     screw_length_ref: float | Float[Array, ""]
     rigid: bool = eqx.field(static=True, default=False)
+    stroke: float | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         k = len(self.carriage_rail)
