@@ -15,9 +15,8 @@ PRESETS = ("majda2012",)
 
 # One OpenBLAS thread for NumPy and SciPy (and JAX's CPU LAPACK kernels, which call SciPy's):
 # the commands' dense algebra is on matrices of ~10² rows, where threads gain nothing, and on
-# a machine shared with other jobs OpenBLAS's waiting threads stalled it: `diffguide fit` on the
-# bundled data took 105 s instead of 18 s (warm cache, load ≈ 7 on 2 cores; the elastic fit's
-# own NumPy part 62 s → 6 s). OpenBLAS reads this when NumPy is first imported, so it is set
+# a machine shared with other jobs OpenBLAS's waiting threads stalled it several-fold
+# (bench/bench_cli.py measures the commands). OpenBLAS reads this when NumPy is first imported, so it is set
 # here, before any command imports NumPy; set OPENBLAS_NUM_THREADS yourself to override it.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
@@ -47,9 +46,8 @@ TABLE_SUBDIR = "tables"
 EXPORT_SUBDIR = "exports"
 #: XLA's CPU compiler settings for a command-line run, by the jaxlib versions they were measured
 #: on (XLA aborts on a flag it does not know, so never for other versions): XLA's classic loop
-#: emitters instead of the fusion emitters (first ``diffguide fit`` on the bundled data 7.0–8.4
-#: → 6.3–6.5 s, first ``simulate`` 3.4–3.6 → 2.7–2.9 s, medians of 3 in alternating rounds,
-#: idle 2-core x86-64, jaxlib 0.9.2; results equal to ~1e-12). (``--xla_cpu_use_thunk_runtime=
+#: emitters instead of the fusion emitters (a first run compiles faster, results equal to
+#: ~1e-12; bench/bench_cli.py compares first runs). (``--xla_cpu_use_thunk_runtime=
 #: false`` is ignored by jaxlib 0.9.2, which only logs that it is no longer supported.) A user's
 #: own ``XLA_FLAGS`` are kept and win.
 XLA_CPU_FLAGS = {

@@ -138,7 +138,7 @@ def split_cpu_into_devices(n: int | None = None) -> bool:
     :func:`~diffguide.batched_sweep` shards over them and runs one Newton stream per core.
 
     XLA runs the small, batched operations of a sweep mostly on one thread; separate devices run
-    in parallel (measured on 2 cores: 1.4× the throughput of one device, under load). Sets
+    in parallel (bench/bench_montecarlo.py measures the throughput). Sets
     ``--xla_force_host_platform_device_count`` in ``XLA_FLAGS``, which only takes effect before
     JAX initializes its backends (the first array). Returns whether it could still take effect.
     Accelerators are unaffected (``jax.devices()`` stays the GPUs).

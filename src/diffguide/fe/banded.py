@@ -223,9 +223,9 @@ def matvec(D: Float[Array, "nb s s"], C: Float[Array, "nb1 s s"], X: Float[Array
 
 
 #: Largest diagonal block handed to LAPACK (``potrf``, ``trsm``) in :func:`inverse_factor`.
-#: Threaded OpenBLAS ``trsm`` above ~32 and ``potrf`` above ~100 took 20–350 ms instead of
-#: 0.1–1 ms per call on a loaded 2-core machine (threads spinning for cores); below these sizes
-#: it runs single-threaded, and the flops go to matrix products instead.
+#: Threaded OpenBLAS ``trsm`` above ~32 and ``potrf`` above ~100 ran two orders of magnitude
+#: slower per call on a loaded machine (threads spinning for cores); below these sizes it runs
+#: single-threaded, and the flops go to matrix products instead.
 LEAF = 32
 
 

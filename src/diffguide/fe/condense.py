@@ -345,8 +345,8 @@ def _grid_natural_coords(mesh: TableMesh, quads: np.ndarray, pts: np.ndarray):
 
 #: XLA options of the condensation when it is compiled on its own (not inside another traced
 #: function): a one-time computation per table, whose compilation at the default optimisation
-#: level costs several seconds more than the little it gains at run time (20 × 10 mesh: 7.6 s →
-#: 3.6 s CPU to compile, 0.04 → 0.07 s per condensation).
+#: level costs about twice the compile time for the little it gains at run time (a few
+#: hundredths of a second per condensation).
 CONDENSE_COMPILER_OPTIONS = {"xla_backend_optimization_level": 0}
 
 

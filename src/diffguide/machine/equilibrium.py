@@ -417,8 +417,7 @@ def equilibrium_traced(
             of only flagging it in ``result``.
         condensed: elastic table: Newton on the carriages' contact DOF with the others
             condensed (see the module docstring): about half the run time of a sweep, but a
-            larger program, which takes longer to compile (here 0.4–0.5 s more for a sweep,
-            0.4–1.4 s for a fit's linearisation); ``False``: Newton on all 30 interface DOF
+            larger program, which takes longer to compile; ``False``: Newton on all 30 interface DOF
             from zero. The same solution and derivatives either way.
 
     Returns:

@@ -19,7 +19,8 @@ times a zero). To differentiate about such a point use the mean square
 *Influence map* — the roll at each corner and table position caused by a unit bump on a rail:
 ``∂E_AX,c(x_i)/∂c_k`` for the B-spline coefficients ``c_k`` of a
 :class:`~diffguide.guideway.rails.SplineRail`, by forward mode (:func:`jax.jacfwd`; never ``jacrev``
-here: reverse mode through the vmapped implicit solves took 21–37 s and 14.5 GB). Units rad/m =
+here: reverse mode through the vmapped implicit solves stores every solve's tape, tens of
+seconds and gigabytes for a sweep). Units rad/m =
 µrad per µm of coefficient (a coefficient of 1 µm is a bump of peak 2/3 µm centred at
 ``s₀ + (k−1)h``, ``4h`` wide at its base).
 """
