@@ -16,8 +16,9 @@ PRESETS = ("majda2012",)
 # One OpenBLAS thread for NumPy and SciPy (and JAX's CPU LAPACK kernels, which call SciPy's):
 # the commands' dense algebra is on matrices of ~10² rows, where threads gain nothing, and on
 # a machine shared with other jobs OpenBLAS's waiting threads stalled it several-fold
-# (bench/bench_cli.py measures the commands). OpenBLAS reads this when NumPy is first imported, so it is set
-# here, before any command imports NumPy; set OPENBLAS_NUM_THREADS yourself to override it.
+# (bench/bench_cli.py measures the commands). OpenBLAS reads this when NumPy is first
+# imported, so it is set here, before any command imports NumPy; set OPENBLAS_NUM_THREADS
+# yourself to override it.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 #: exit statuses of every command (also in the README and each ``--help`` epilogue)
