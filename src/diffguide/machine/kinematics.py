@@ -11,7 +11,6 @@ straightness (m inside, µm at the edges); EAX roll, EBX pitch, ECX yaw (rad ins
 at the edges), each positive along/about +X, +Y, +Z (right-handed).
 """
 
-import functools
 import operator
 
 import equinox as eqx
@@ -181,15 +180,26 @@ def joint_errors_traced(
 _joint_errors_jit = eqx.filter_jit(joint_errors_traced)
 
 
-@functools.wraps(joint_errors_traced)
-def joint_errors(machine, rails, positions, x_ref=0.0, **kwargs) -> JointErrors:
-    # :func:`joint_errors_traced`, compiled (the function to call), after refusing concrete
-    # positions and x_ref outside POSITION_RANGE. Inside another traced function call
-    # ``joint_errors_traced`` itself: a nested ``jit`` is traced again by every transformation
-    # around it (``jvp``, ``vmap``), which made the fit's linearisation slower to trace.
+def joint_errors(
+    machine: Machine,
+    rails: tuple[AbstractRailProfile, AbstractRailProfile],
+    positions: Float[Array, " n_pos"],
+    x_ref: float | Float[Array, ""] = 0.0,
+    *,
+    throw: bool = False,
+    condensed: bool = True,
+) -> JointErrors:
+    """The joint errors at the machine's points over ``positions``: :func:`joint_errors_traced`
+    compiled (the function to call), after refusing concrete ``positions`` and ``x_ref``
+    outside :data:`POSITION_RANGE` (m).
+
+    Arguments and returns: as :func:`joint_errors_traced`. Inside another traced function call
+    ``joint_errors_traced`` itself: a nested ``jit`` is traced again by every transformation
+    around it (``jvp``, ``vmap``), which makes a linearisation slower to trace.
+    """
     length("positions", positions, *POSITION_RANGE)  # traced values pass unchecked
     length("x_ref", x_ref, *POSITION_RANGE)
-    return _joint_errors_jit(machine, rails, positions, x_ref, **kwargs)
+    return _joint_errors_jit(machine, rails, positions, x_ref, throw=throw, condensed=condensed)
 
 
 def error_field(machine: Machine, errors: JointErrors, index: int):
