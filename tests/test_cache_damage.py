@@ -250,7 +250,7 @@ def test_cli_fit_heals_the_audits_flipped_program_and_jax_entries(tmp_path):
     middle of the stored program (``exports/*.jaxexport``) and of every JAX compilation-cache
     entry; the next fit exits 0 with a bitwise identical ``rails.csv``, says what it rebuilt,
     and leaves entries that JAX can read again."""
-    from diffguide._core.cachedir import _jax_decompress
+    from diffguide._core.compat import jax_cache_decompress
 
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     cache = tmp_path / "cache"
@@ -277,6 +277,6 @@ def test_cli_fit_heals_the_audits_flipped_program_and_jax_entries(tmp_path):
     assert "did not converge" not in second.stderr
     cacheentry.read(program, aot._PROGRAM, program.name.split(".")[0], aot.FORMAT)  # whole again
     for path in sorted(cache.glob("*-cache")):
-        _jax_decompress(path.read_bytes())
+        jax_cache_decompress(path.read_bytes())
     if jax_entries:
         assert "JAX compilation cache entry" in second.stderr
