@@ -8,7 +8,9 @@ every step decreases the potential and the iteration converges from any start. T
 differentiated: a ``custom_jvp`` gives the derivatives of the root ``y*(θ)`` of the gradient
 ``g(y, θ) = ∂Π/∂y`` from the implicit function theorem, ``dy*/dθ = −(∂g/∂y)⁻¹ ∂g/∂θ``, with the
 closed-form Hessian's Cholesky factor shared by every tangent (optimistix's ``ImplicitAdjoint``
-with LU, used before, ran 10–40 times slower under ``jacfwd`` over many tangents).
+with LU, used before, ran 10–40 times slower under ``jacfwd`` over many tangents). The rule is
+written in differentiable operations on the root itself, so derivatives of every order are the
+implicit function theorem's (:func:`_implicit_tangent`).
 """
 
 import functools
@@ -102,11 +104,16 @@ def _implicit_solve(potential, grad_hess, max_steps, tol, y0, args):
 
 
 def _implicit_tangent(grad_hess, y, args, args_dot):
-    """``ẏ = −H⁻¹ (∂g/∂args)·ȧrgs`` at the root ``y`` of ``g``."""
-    y = jax.lax.stop_gradient(y)
+    """``ẏ = −H⁻¹ (∂g/∂args)·ȧrgs`` at the root ``y`` of ``g``.
+
+    Written without ``stop_gradient``: ``y`` here carries the implicit derivative itself (the
+    callers pass the custom-differentiated root), so differentiating this tangent again — a
+    Hessian, ``jvp`` of ``grad`` — gives ``d(ẏ) = −H⁻¹(Ḣ ẏ + d(∂g/∂args)·ȧrgs)`` with
+    ``Ḣ = ∂H/∂y·ẏ + ∂H/∂args·ȧrgs``: derivatives of every order follow from the implicit
+    function theorem applied again (a first derivative costs the same: the extra terms only
+    appear when the tangent itself is differentiated)."""
     # H and ∂g/∂args·ȧrgs from one trace of grad_hess (the unused Ḣ is dropped by the compiler)
     (_, H), (g_dot, _) = jax.jvp(lambda a: grad_hess(y, a), (args,), (args_dot,))
-    H = jax.lax.stop_gradient(H)
     return -jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(H), g_dot)
 
 
@@ -137,6 +144,9 @@ def implicit_root(grad_hess: Callable, y: jax.Array, args) -> jax.Array:
 def _implicit_root_jvp(grad_hess, primals, tangents):
     y, args = primals
     _, args_dot = tangents
+    # the root again (same value), so that a derivative of this rule sees y's implicit tangent
+    # rather than the tangent of however y was found
+    y = implicit_root(grad_hess, y, args)
     return y, _implicit_tangent(grad_hess, y, args, args_dot)
 
 

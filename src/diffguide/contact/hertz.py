@@ -76,28 +76,48 @@ def _curvature_ratio(log_ab):
     return (E / ratio**2 - K) / (kme * m)
 
 
-def ellipticity(curvature_ratio: ScalarLike) -> Float[Array, ""]:
-    """``ln(a/b)`` of the contact ellipse for a curvature ratio ``B/A ≥ 1``.
-
-    Bisection on ``t = ln(a/b) ∈ [0, 40]`` for the value, then one Newton step written so that
-    its derivative is the implicit-function derivative ``dt/d(B/A) = 1/g'(t)``.
-    """
-    target = jnp.asarray(curvature_ratio, dtype=float)
+def _ellipticity_value(target):
+    """Bisection on ``t ∈ [0, 40]`` and one Newton step (round-off accuracy), not differentiated."""
     lo = jnp.zeros_like(target)
     hi = jnp.full_like(target, 40.0)
-    target_c = jax.lax.stop_gradient(target)
 
     def body(_, bounds):
         lo, hi = bounds
         mid = 0.5 * (lo + hi)
-        above = _curvature_ratio(jnp.maximum(mid, 1e-7)) > target_c
+        above = _curvature_ratio(jnp.maximum(mid, 1e-7)) > target
         return jnp.where(above, lo, mid), jnp.where(above, mid, hi)
 
     lo, hi = jax.lax.fori_loop(0, _BISECT_STEPS, body, (lo, hi))
-    t0 = jax.lax.stop_gradient(jnp.maximum(0.5 * (lo + hi), 1e-7))
+    t0 = jnp.maximum(0.5 * (lo + hi), 1e-7)
     g, dg = jax.jvp(_curvature_ratio, (t0,), (jnp.ones_like(t0),))
     t = t0 - (g - target) / dg
     return jnp.where(target <= 1.0 + 1e-12, 0.0, t)
+
+
+@jax.custom_jvp
+def _ellipticity(target):
+    return _ellipticity_value(jax.lax.stop_gradient(target))
+
+
+@_ellipticity.defjvp
+def _ellipticity_jvp(primals, tangents):
+    # implicit function theorem on g(t) = B/A: ṫ = (B/A)˙ / g'(t), with t the root itself (so a
+    # derivative of this tangent differentiates t again: every order is the implicit one)
+    (target,), (target_dot,) = primals, tangents
+    t = _ellipticity(target)
+    circle = target <= 1.0 + 1e-12
+    _, dg = jax.jvp(_curvature_ratio, (jnp.where(circle, 1.0, t),), (jnp.ones_like(t),))
+    return t, jnp.where(circle, 0.0, target_dot / dg)
+
+
+def ellipticity(curvature_ratio: ScalarLike) -> Float[Array, ""]:
+    """``ln(a/b)`` of the contact ellipse for a curvature ratio ``B/A ≥ 1``.
+
+    Bisection on ``t = ln(a/b) ∈ [0, 40]`` and one Newton step for the value; derivatives of
+    every order from the implicit function theorem, ``dt/d(B/A) = 1/g'(t)`` with
+    ``g(t) = B/A`` (0 at the circle, ``B/A = 1``).
+    """
+    return _ellipticity(jnp.asarray(curvature_ratio, dtype=float))
 
 
 def point_contact(
