@@ -269,6 +269,8 @@ def run(args) -> int:
     cfg = machine_config(args)
     positions = _positions(args, cfg)
     check_tolerances(args)
+    if args.export_compensation:
+        _check_export(args)
     nx, ny = parse_mesh(args.mesh) if args.mesh else (None, None)
     rails = read_rails_csv(args.rails) if args.rails else paper_variant(args.variant)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
@@ -293,8 +295,6 @@ def run(args) -> int:
         raise ValueError(
             f"--at must be one of the points {', '.join(je.point_names)}, got {args.at!r}"
         )
-    if args.export_compensation:
-        _check_export(args)
     atomic_write_text(args.out, joint_errors_csv(positions, je.point_names, je.points_xy, errs))
     say(f"wrote {args.out}")
     if args.field_plot:
