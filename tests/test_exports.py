@@ -12,6 +12,7 @@ HEIDENHAIN MANUALplus 620 Technical Manual (01/2012) 6.10.3; FANUC B-63980EN/01 
 import csv
 import io
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -349,3 +350,16 @@ def test_simulated_machine_to_cec_and_heidenhain(tmp_path):
     comp.unlink()
     assert main([*no_side, str(comp), "--format", "siemens-cec"]) == 2  # refused before work
     assert not comp.exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--format", "siemens-cec"], "--format siemens-cec needs --axis-side"),
+    (["--format", "isg", "--axis-side", "Q=tool"], "axis_side: Q='tool' is not allowed"),
+])
+def test_fit_refuses_export_options_before_any_work(tmp_path, capsys, args, message):
+    data = Path(__file__).resolve().parents[1] / "data" / "majda2012_measurements.csv"
+    out = tmp_path / "o"
+    assert main(["fit", "--measurements", str(data), "--out", str(out), "--quiet",
+                 "--export-compensation", str(tmp_path / "c.txt"), *args]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists() and not (tmp_path / "c.txt").exists()

@@ -60,7 +60,7 @@ def add_parser(sub) -> None:
         "--export-compensation",
         metavar="FILE",
         help="also write a compensation table for --at in --format (machine coordinates X = x + "
-        "--x0-mm; README 'Compensation exports')",
+        "--x0-mm; docs: compensation-exports)",
     )
     p.add_argument("--at", default="P5", help="the control point of the compensation table")
     p.add_argument(

@@ -29,6 +29,8 @@ Formats (``FORMATS``; sources in each module and in docs/compensation-exports.md
   *experimental*; no straightness (:mod:`.fanuc`).
 """
 
+from dataclasses import replace
+
 import numpy as np
 
 from . import fanuc, heidenhain, isg, plain, siemens
@@ -88,11 +90,10 @@ def export_compensation(
     spec = fmt if isinstance(fmt, ExportSpec) else ExportSpec(str(fmt))
     if spec.format not in FORMATS:
         raise ValueError(f"--format must be one of {', '.join(FORMATS)}, got {spec.format!r}")
-    if axis_side is not None or detection_unit_mm is not None:
-        spec = ExportSpec(**{**spec.__dict__, **({"axis_side": axis_side} if axis_side
-                                                  is not None else {}),
-                             **({"detection_unit_mm": detection_unit_mm} if detection_unit_mm
-                                is not None else {})})
+    if axis_side is not None:
+        spec = replace(spec, axis_side=axis_side)
+    if detection_unit_mm is not None:
+        spec = replace(spec, detection_unit_mm=detection_unit_mm)
     x_mm = np.asarray(x_mm, float)
     err = np.asarray(errors, float)
     sig = None if sigma is None else np.asarray(sigma, float)
