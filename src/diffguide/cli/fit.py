@@ -105,10 +105,16 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--format", dest="comp_format", default="csv",
                    choices=("csv", "isg", "siemens-cec", "heidenhain", "fanuc"),
                    help="format of --export-compensation: csv (errors and σ, µm/µrad), isg "
-                   "(TwinCAT/ISG CSV: X EXX ... ECX, mm and rad, errors), siemens-cec (840D "
-                   "$AN_CEC tables for EYX/EZX, mm, -error), heidenhain (.COM table, ISO 230-1 "
-                   "columns, mm and degrees, -error), fanuc (incremental pitch/straightness list "
-                   "in detection units, -error); README 'Compensation exports'")
+                   "(ISG/TwinCAT CSV X EXX ... ECX, mm and rad, errors, + FILE.lis lines chain/"
+                   "workpiece_axes), siemens-cec (SINUMERIK CEC $AN_CEC tables EYX->Y, EZX->Z "
+                   "with the activation data; needs --axis-side), heidenhain (EXPERIMENTAL: TNC "
+                   ".COM with AXISPOS + X/Y/Z columns, a .cma; no angles), fanuc (EXPERIMENTAL: "
+                   "pitch of X for parameters 3620-3624, a setting sheet; no straightness); "
+                   "docs: compensation-exports")
+    p.add_argument("--axis-side", default=None, metavar="SIDE",
+                   help="side of the kinematic chain of the compensating axes, which sets the "
+                   "sign of the EYX/EZX tables: tool, workpiece (Y and Z alike) or "
+                   "Y=workpiece,Z=tool (X carries the workpiece)")
     p.add_argument("--comp-points", type=int, default=71,
                    help="equidistant positions of the compensation table over the stroke "
                    "(default 71)")
@@ -163,6 +169,7 @@ def _check_inputs(meas, args, cfg):
         if not 2 <= args.comp_points <= 10000:
             raise ValueError(f"--comp-points must be in [2, 10000], got {args.comp_points}")
         check_tolerances(args)
+        _check_export_options(args)
 
 
 def read_truth(path, s_m):
@@ -442,7 +449,7 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
     machine = fitted_machine(spec, fit, points=points, nx=args.nx, ny=args.ny)
     half = cfg["machine"]["stroke_mm"] / 2
     files, warnings = fitted_compensation(
-        machine, fit, np.linspace(-half, half, args.comp_points), args.at, args.comp_format,
+        machine, fit, np.linspace(-half, half, args.comp_points), args.at, _export_spec(args),
         x0_mm=x0_mm, source=f"predicted by the elastic model fitted to {args.measurements}",
         tol_um=args.tol_um, tol_urad=args.tol_urad)
     base = Path(args.export_compensation)
@@ -452,6 +459,26 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
         say(args, f"wrote {path} (point {args.at}, {args.comp_format})")
     for w in warnings:
         print(f"diffguide fit: warning: {w}", file=sys.stderr)
+
+
+def _check_export_options(args) -> None:
+    """``--axis-side`` parses, and a format whose tables need it has it (before the fit)."""
+    from ..studies.exports import parse_axis_side
+
+    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
+    if args.comp_format == "siemens-cec" and not side:
+        raise ValueError("--format siemens-cec needs --axis-side (tool, workpiece or "
+                         "Y=...,Z=...): the sign of the EYX/EZX tables depends on it")
+
+
+def _export_spec(args):
+    """The export format with its options (:class:`diffguide.studies.exports.ExportSpec`)."""
+    from ..studies.exports import ExportSpec, parse_axis_side
+
+    base = Path(args.export_compensation)
+    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
+    return ExportSpec(args.comp_format, axis_side=side, table_name=base.stem.upper(),
+                      file_name=base.name)
 
 
 def _figures(meas, fits, profiles, s_m, truth):

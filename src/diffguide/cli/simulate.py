@@ -60,7 +60,7 @@ def add_parser(sub) -> None:
         "--export-compensation",
         metavar="FILE",
         help="also write a compensation table for --at in --format (machine coordinates X = x + "
-        "--x0-mm; README 'Compensation exports')",
+        "--x0-mm; docs: compensation-exports)",
     )
     p.add_argument("--at", default="P5", help="the control point of the compensation table")
     p.add_argument(
@@ -68,7 +68,16 @@ def add_parser(sub) -> None:
         dest="comp_format",
         default="csv",
         choices=("csv", "isg", "siemens-cec", "heidenhain", "fanuc"),
-        help="format of --export-compensation (README 'Compensation exports')",
+        help="format of --export-compensation: csv, isg, siemens-cec (needs --axis-side), "
+        "heidenhain (EXPERIMENTAL: the .COM/.CMA frame), fanuc (EXPERIMENTAL: pitch sheet for "
+        "parameters 3620-3624); docs: compensation-exports",
+    )
+    p.add_argument(
+        "--axis-side",
+        default=None,
+        metavar="SIDE",
+        help="side of the kinematic chain of the compensating axes (sign of the EYX/EZX "
+        "tables): tool, workpiece or Y=workpiece,Z=tool (X carries the workpiece)",
     )
     p.add_argument(
         "--x0-mm",
@@ -182,6 +191,18 @@ def _field_plot(args, name, machine, je, positions, say) -> None:
     say(f"wrote {args.field_plot}")
 
 
+def _check_export(args) -> None:
+    """``--axis-side`` parses, and ``siemens-cec`` has it (before anything is written)."""
+    from ..studies.exports import parse_axis_side
+
+    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
+    if args.comp_format == "siemens-cec" and not side:
+        raise ValueError(
+            "--format siemens-cec needs --axis-side (tool, workpiece or "
+            "Y=...,Z=...): the sign of the EYX/EZX tables depends on it"
+        )
+
+
 def _compensation(args, name, je, errs, positions, say) -> None:
     """``--export-compensation``: the table of ``--at`` in ``--format``, and a warning where
     another point departs from the rigid-body prediction from it."""
@@ -190,20 +211,25 @@ def _compensation(args, name, je, errs, positions, say) -> None:
 
     from ..io.atomic import atomic_write_text
     from ..studies.compensation import location_warnings
-    from ..studies.exports import export_compensation
+    from ..studies.exports import ExportSpec, export_compensation, parse_axis_side
 
     what = f"rails {args.rails}" if args.rails else f"variant {args.variant}"
     j = list(je.point_names).index(args.at)
+    base = Path(args.export_compensation)
+    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
+    spec = ExportSpec(
+        args.comp_format, axis_side=side, table_name=base.stem.upper(), file_name=base.name
+    )
     files = export_compensation(
-        args.comp_format,
+        spec,
         positions * 1e3,
         np.asarray(je.errors)[:, j, :],
         None,
         x0_mm=args.x0_mm,
         point=args.at,
         source=f"simulated, {name}, {what}",
+        exx_includes_lead=False,  # a simulation: ideal drive, no lead error
     )
-    base = Path(args.export_compensation)
     for suffix, text in files.items():
         path = base if not suffix else base.with_name(base.stem + suffix)
         atomic_write_text(path, text)
@@ -243,6 +269,8 @@ def run(args) -> int:
     cfg = machine_config(args)
     positions = _positions(args, cfg)
     check_tolerances(args)
+    if args.export_compensation:
+        _check_export(args)
     nx, ny = parse_mesh(args.mesh) if args.mesh else (None, None)
     rails = read_rails_csv(args.rails) if args.rails else paper_variant(args.variant)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))

@@ -1,0 +1,108 @@
+r"""Compensation tables for real controllers, from the joint errors predicted at one point.
+
+Input everywhere: table positions ``x`` (mm, relative to the reference position x = 0), the six
+joint errors at the chosen point ``(n, 6)`` in SI (m, rad; ISO 230-1 signs, relative to x = 0)
+and their standard uncertainties (same shape, or ``None``). ``x0_mm`` is the machine coordinate
+of x = 0: every table is written in machine coordinates ``X = x + x0``.
+
+**Sign** (:mod:`._common`): a controller adds a compensation value to the compensated axis. X
+carries the workpiece (diffguide's table), so pitch is ``−EXX``; a cross-axis table is
+``−E`` on a workpiece-side axis and ``+E`` on a tool-side axis: the side of Y and Z is an
+explicit option (``axis_side``), never guessed. ``isg`` and ``csv`` hold the errors themselves
+(ISG computes the correction, given ``workpiece_axes``).
+
+**EXX and the lead error.** ``exx_includes_lead`` says what EXX holds: ``True`` (a fit's EXX
+with the fitted lead error), ``False`` (a simulation: ideal drive, no lead error), ``None``
+(unknown): then EXX is left out of every file, with the reason in its header, and the pitch-only
+``fanuc`` export is refused.
+
+Formats (``FORMATS``; sources in each module and in docs/compensation-exports.md):
+
+- ``csv`` — ``X_machine_mm,x_mm,EXX_um,EXX_sigma_um,...,ECX_urad,ECX_sigma_urad``.
+- ``isg`` — ISG CSV (``X EXX ... ECX``, mm and rad, errors) + ``.lis`` configuration lines
+  (``chain``, ``workpiece_axes``) (:mod:`.isg`).
+- ``siemens-cec`` — SINUMERIK CEC init program for EYX on Y, EZX on Z, with the activation data
+  as comments (:mod:`.siemens`).
+- ``heidenhain`` — TNC nonlinear compensation ``NAME.COM`` (``NR AXISPOS X Y Z``) +
+  ``.cma`` + ``.note.txt``; *experimental* frame; angles refused (:mod:`.heidenhain`).
+- ``fanuc`` — pitch error compensation of X for parameters 3620–3624 as a setting sheet;
+  *experimental*; no straightness (:mod:`.fanuc`).
+"""
+
+from dataclasses import replace
+
+import numpy as np
+
+from . import fanuc, heidenhain, isg, plain, siemens
+from ._common import SIDES as SIDES
+from ._common import ExportSpec as ExportSpec
+from ._common import parse_axis_side as parse_axis_side
+from .plain import sigma_csv as sigma_csv
+
+FORMATS = ("csv", "isg", "siemens-cec", "heidenhain", "fanuc")
+#: Formats whose syntax could not be fully confirmed from documentation, and why.
+EXPERIMENTAL = {"heidenhain": heidenhain.EXPERIMENTAL, "fanuc": fanuc.EXPERIMENTAL}
+#: ``--format`` help text of the CLI.
+FORMAT_HELP = (
+    "format of --export-compensation: csv (errors and σ, µm/µrad), isg (ISG/TwinCAT CSV X EXX "
+    "... ECX, mm and rad, errors, + .lis lines chain/workpiece_axes), siemens-cec (SINUMERIK "
+    "CEC $AN_CEC tables EYX->Y, EZX->Z with the activation data; needs --axis-side), heidenhain "
+    "(EXPERIMENTAL: TNC .COM with AXISPOS + X/Y/Z columns and a .CMA; no angles), fanuc "
+    "(EXPERIMENTAL: pitch of X for parameters 3620-3624, a setting sheet; no straightness); "
+    "docs: compensation-exports")
+AXIS_SIDE_HELP = (
+    "side of the kinematic chain of the compensating axes, which sets the sign of the EYX/EZX "
+    "tables: tool, workpiece (Y and Z alike) or Y=workpiece,Z=tool (X carries the workpiece)")
+_WRITERS = {"isg": isg.write, "siemens-cec": siemens.write, "heidenhain": heidenhain.write,
+            "fanuc": fanuc.write}
+
+
+def export_compensation(
+    fmt,
+    x_mm,
+    errors,
+    sigma=None,
+    *,
+    x0_mm: float = 0.0,
+    point: str = "P",
+    source: str = "",
+    detection_unit_mm: float | None = None,
+    axis_side=None,
+    exx_includes_lead: bool | None = None,
+) -> dict[str, str]:
+    """The files of a compensation export: ``{suffix: text}``, ``""`` the table itself, and
+    companions by format (``.sigma.csv`` the σ where the table has no room for it, ``.cma``,
+    ``.lis``, ``.note.txt``).
+
+    Arguments:
+        fmt: a :data:`FORMATS` name or an :class:`ExportSpec` (the format with its options).
+        x_mm: table positions (mm, x = 0 the reference position). errors: ``(n, 6)`` joint
+            errors (m, rad). sigma: their standard uncertainties, or ``None``.
+        x0_mm: machine coordinate (mm) of x = 0. point, source: for the header.
+        detection_unit_mm, axis_side: override the spec's (``fanuc`` detection unit in mm;
+            side of Y and Z: :class:`ExportSpec`).
+        exx_includes_lead: whether EXX includes the fitted lead error (``True``), has none
+            (``False``: a simulation), or is unknown (``None``: EXX left out, ``fanuc``
+            refused).
+
+    ``ValueError`` with the reason where a table cannot be written (module docstring).
+    """
+    spec = fmt if isinstance(fmt, ExportSpec) else ExportSpec(str(fmt))
+    if spec.format not in FORMATS:
+        raise ValueError(f"--format must be one of {', '.join(FORMATS)}, got {spec.format!r}")
+    if axis_side is not None:
+        spec = replace(spec, axis_side=axis_side)
+    if detection_unit_mm is not None:
+        spec = replace(spec, detection_unit_mm=detection_unit_mm)
+    x_mm = np.asarray(x_mm, float)
+    err = np.asarray(errors, float)
+    sig = None if sigma is None else np.asarray(sigma, float)
+    if err.shape != (len(x_mm), 6) or (sig is not None and sig.shape != err.shape):
+        raise ValueError("errors (and sigma) must have shape (n_positions, 6)")
+    kw = dict(x0_mm=x0_mm, point=point, source=source, exx_includes_lead=exx_includes_lead)
+    if spec.format == "csv":
+        return plain.write(x_mm, err, sig, **kw)
+    files = _WRITERS[spec.format](x_mm, err, spec=spec, **kw)
+    if sig is not None:
+        files[".sigma.csv"] = sigma_csv(x_mm, sig, x0_mm, point, exx_includes_lead)
+    return files
