@@ -229,7 +229,7 @@ def metrologist_sections(fit, meas, s_m, *, rail_y_mm=None, tolerance_um=None,
             "posterior (spline coefficients ~ N(fitted, covariance), structure uncertainty "
             "included); u = RMS deviation of the draws' straightness from the fitted "
             f"profile's; U = k·u, k = {K_COVERAGE:g}"),
-        "coverage_factor": K_COVERAGE,
+        "coverage_factor": K_COVERAGE, "samples_per_profile": N_SAMPLES, "seed": 0,
         "evaluated_s_mm": [float(s_m[0] * 1e3), float(s_m[-1] * 1e3)],
         "grid_step_mm": step,
         "tolerance_um": tolerance_um,

@@ -134,15 +134,16 @@ def _compensation_section(report: dict) -> str:
     comp = report["compensation"]
     rows = "".join(
         f"<tr><td>{_e(named(c['channel']))}</td><td class=\"num\">{c['fitted_range_user']:.3g}"
-        f"</td><td class=\"num\">{c['residual_rms_user']:.3g}</td><td>{_e(c['unit'])}</td></tr>"
-        for c in comp["channels"])
+        f"</td><td class=\"num\">{c['residual_rms_user']:.3g}</td><td>{_e(c['unit'])}</td>"
+        f"<td class=\"num\">{_ratio(c)}</td></tr>" for c in comp["channels"])
     ex = comp.get("export")
     export = ("<p>No compensation table was requested (<code>--export-compensation</code>).</p>"
               if not ex else
               f"<p>Compensation table: <code>{_e(ex['file'])}</code>, format {_e(ex['format'])}, "
               f"at point {_e(ex['point'])}.</p>")
     return (export + "<table id=\"compensation\"><tr><th>channel</th><th>fitted error range"
-            "</th><th>residual RMS</th><th>unit</th></tr>" + rows + "</table>"
+            "</th><th>residual RMS</th><th>unit</th><th>range / residual RMS</th></tr>"
+            + rows + "</table>"
             f"<p class=\"note\">{_e(comp['note'])}.</p>")
 
 
@@ -155,6 +156,11 @@ def named(label: str) -> str:
     """``"EBX at P1 (level)"`` → ``"EBX (pitch) at P1 (level)"``."""
     q, sep, rest = label.partition(" ")
     return f"{q} ({ERROR_WORDS[q]}){sep}{rest}" if q in ERROR_WORDS else label
+
+
+def _ratio(c: dict) -> str:
+    r = c["residual_rms_user"]
+    return "—" if not r else f"{c['fitted_range_user'] / r:.1f}"
 
 
 def _stamp(report: dict) -> str:
@@ -178,7 +184,8 @@ def _stamp(report: dict) -> str:
 def _status(report: dict) -> str:
     el = report["elastic"]
     chi = el["chi2_per_dof"]
-    lines = [f"fit {'converged' if el['converged'] else 'did NOT converge'} ({_e(el['status'])});"
+    how = "" if el["status"] == "converged" else f" ({_e(el['status'])})"
+    lines = [f"fit {'converged' if el['converged'] else 'did NOT converge'}{how};"
              f" χ²/dof = {'—' if chi is None else f'{chi:.3f}'} (about 1 when the model "
              "explains the data to their stated uncertainty)"]
     lines += [f"warning: {_e(w['message'])}; {_e(w['action'])}" for w in report["validity"]]
@@ -204,6 +211,7 @@ def report_html(report: dict, figures: dict | None = None) -> str:
         f"{st['evaluated_s_mm'][1]:g} mm, every {st['grid_step_mm']:g} mm). Uncertainty: "
         f"{_e(st['uncertainty_method'])}. Not in U: {_e(st['not_in_U'])}.</p>",
         _straightness_table(st),
+        "" if figures else "<p class=\"note\">Figures left out (--no-plots).</p>",
         f'<p id="verdict"><strong>{_e(verdict_line(st))}</strong></p>',
         _figure(figures, "straightness.png",
                 "Deviations of each rail from its least-squares reference line (µm); band: ±2σ "
