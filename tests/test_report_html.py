@@ -181,3 +181,13 @@ def test_opens_in_headless_chromium(fitted, tmp_path):
     page = _parse(dom)
     _check_table(page, json.loads((out / "report.json").read_text())["straightness"])
     assert len(page.images) == 3
+
+
+@pytest.mark.parametrize("value", ["0", "-3", "nan", "1e6"])
+def test_bad_tolerance_is_refused_before_any_work(tmp_path, capsys, value):
+    out = tmp_path / "out"
+    assert main(["fit", "--preset", "majda2012", "--measurements", str(DATA), "--out", str(out),
+                 "--tolerance-um", value, "--quiet"]) == 2
+    assert "--tolerance-um must be a straightness tolerance in (0, 10000] µm" in \
+        capsys.readouterr().err
+    assert not out.exists()
