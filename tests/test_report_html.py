@@ -191,3 +191,38 @@ def test_bad_tolerance_is_refused_before_any_work(tmp_path, capsys, value):
     assert "--tolerance-um must be a straightness tolerance in (0, 10000] µm" in \
         capsys.readouterr().err
     assert not out.exists()
+
+
+def test_report_figures_take_ax_and_draw(tmp_path):
+    # the figures of report.html on synthetic input: given Axes are drawn into and returned;
+    # the bare figures save (as the figures' process does)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from diffguide.plotting.report import (
+        plot_residuals,
+        plot_straightness,
+        residuals_figure,
+        straightness_figure,
+    )
+
+    s = np.linspace(-300.0, 300.0, 61)
+    dev = np.sin(s / 100.0)[None, None] * np.ones((2, 2, 1))
+    sig = 0.1 * np.ones_like(dev)
+    rows = [{"rail": r + 1, "side": "−y" if r == 0 else "+y", "y_mm": -170.0 + 340.0 * r,
+             "plane": pl, "straightness_um": 2.0, "U_um": 0.2, "verdict": None}
+            for r in range(2) for pl in ("vertical", "horizontal")]
+    chans = [(f"EAX (roll) at P{k}", "µrad", s, np.cos(s), 0.5 + 0 * s) for k in range(3)]
+    fig, axes = plt.subplots(2, 2)
+    assert plot_straightness(s, dev, sig, rows, ax=axes)[1, 0] is axes[1, 0]
+    assert "rail 1, −y side" in axes[0, 0].get_title()
+    fig2, axes2 = plt.subplots(2, 2)
+    got = plot_residuals(chans, ax=axes2)
+    assert got[1, 0] is axes2[1, 0] and not axes2[1, 1].get_visible()
+    plt.close(fig)
+    plt.close(fig2)
+    straightness_figure(s, dev, sig, rows).savefig(tmp_path / "a.png")
+    residuals_figure(chans[:1]).savefig(tmp_path / "b.png")
+    assert (tmp_path / "a.png").read_bytes()[:4] == b"\x89PNG"

@@ -4,6 +4,8 @@ straightness and ``U``, and the fit's residuals per channel."""
 
 import numpy as np
 
+from . import axes_grid
+
 _PLANES = ("vertical", "horizontal")
 _COLOURS = ("tab:blue", "tab:red")
 
@@ -13,16 +15,14 @@ def _rail_title(row: dict) -> str:
     return f"rail {row['rail']}{side}: {row['plane']}"
 
 
-def straightness_figure(s_mm, dev_um, sig_um, rows, *, reference: str = "least-squares"):
+def plot_straightness(s_mm, dev_um, sig_um, rows, *, reference: str = "least-squares",
+                      ax=None):
     """Per rail (columns) and plane (rows) the fitted profile's deviations from its
     ``reference`` line (µm) over ``s_mm`` (mm) with their ±2σ posterior band, the peak and the
     valley marked, and the straightness ± U and verdict of ``rows`` (report.json's
-    ``straightness.rails``) in the title. ``dev_um``, ``sig_um``: ``(2, 2, len(s))`` (µm)."""
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(12, 6.4))
-    axes = fig.subplots(2, 2, sharex=True)
-    fig.subplots_adjust(left=0.07, right=0.99, top=0.86, bottom=0.09, hspace=0.32, wspace=0.18)
+    ``straightness.rails``) in the title. ``dev_um``, ``sig_um``: ``(2, 2, len(s))`` (µm).
+    ``ax``: 2 × 2 Axes to draw into (default: a new figure). Returns the (2, 2) Axes."""
+    fig, axes = axes_grid(ax, 2, 2, figsize=(12, 6.4), sharex=True)
     s = np.asarray(s_mm, float)
     for row in rows:
         r, p = row["rail"] - 1, _PLANES.index(row["plane"])
@@ -44,26 +44,36 @@ def straightness_figure(s_mm, dev_um, sig_um, rows, *, reference: str = "least-s
     axes[0, 0].legend(fontsize=7, loc="best")
     fig.suptitle(f"rail straightness (ISO 230-1, {reference} reference line; ▲ peak, ▼ valley;"
                  " band ±2σ of the fit's posterior)", fontsize=10)
+    return axes
+
+
+def straightness_figure(s_mm, dev_um, sig_um, rows, *, reference: str = "least-squares"):
+    """:func:`plot_straightness` on a new bare ``Figure`` with fixed margins (for files)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12, 6.4))
+    axes = fig.subplots(2, 2, sharex=True)
+    fig.subplots_adjust(left=0.07, right=0.99, top=0.86, bottom=0.09, hspace=0.32, wspace=0.18)
+    plot_straightness(s_mm, dev_um, sig_um, rows, reference=reference, ax=axes)
     return fig
 
 
-def residuals_figure(channels):
+def _grid(n: int) -> tuple[int, int]:
+    cols = min(max(n, 1), 2)
+    return (max(n, 1) + cols - 1) // cols, cols
+
+
+def plot_residuals(channels, *, ax=None):
     """The fit's residuals (measured − fitted) per channel against the table position, with
     ±1σ error bars (the standard uncertainty of each merged value, as the fit weighs it).
 
     ``channels``: list of ``(label, unit, position_mm, residual, sigma)`` (residual and σ in
     ``unit``; the label as given, e.g. ``"EBX (pitch) at P1 (level)"``:
-    :func:`diffguide.io.report_html.named`)."""
-    from matplotlib.figure import Figure
-
-    n = max(len(channels), 1)
-    cols = min(n, 2)
-    rows = (n + cols - 1) // cols
-    height = 2.2 * rows + 0.9
-    fig = Figure(figsize=(6 * cols, height))
-    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False, sharex=True)).ravel()
-    fig.subplots_adjust(left=0.08 * 2 / cols, right=1 - 0.015 * 2 / cols, top=1 - 0.7 / height,
-                        bottom=0.5 / height, hspace=0.35, wspace=0.18)
+    :func:`diffguide.io.report_html.named`). ``ax``: rows × 2 Axes (one column for a single
+    channel) to draw into (default: a new figure). Returns the (rows, cols) Axes."""
+    rows, cols = _grid(len(channels))
+    fig, grid = axes_grid(ax, rows, cols, figsize=(6 * cols, 2.2 * rows + 0.9), sharex=True)
+    axes = grid.ravel()
     for ax, (label, unit, x, res, sig) in zip(axes, channels):
         order = np.argsort(x)
         x, res, sig = (np.asarray(a, float)[order] for a in (x, res, sig))
@@ -79,6 +89,21 @@ def residuals_figure(channels):
         ax.tick_params(labelbottom=True)
     fig.suptitle("residuals, measured − fitted (error bars: ±1σ, the standard uncertainty of "
                  "each merged value)", fontsize=10)
+    return grid
+
+
+def residuals_figure(channels):
+    """:func:`plot_residuals` on a new bare ``Figure`` with fixed margins (in inches: the
+    panels keep their size whatever the number of channels)."""
+    from matplotlib.figure import Figure
+
+    rows, cols = _grid(len(channels))
+    height = 2.2 * rows + 0.9
+    fig = Figure(figsize=(6 * cols, height))
+    axes = fig.subplots(rows, cols, squeeze=False, sharex=True)
+    fig.subplots_adjust(left=0.08 * 2 / cols, right=1 - 0.015 * 2 / cols, top=1 - 0.7 / height,
+                        bottom=0.5 / height, hspace=0.35, wspace=0.18)
+    plot_residuals(channels, ax=axes)
     return fig
 
 
