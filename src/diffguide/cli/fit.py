@@ -33,9 +33,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "folder (written atomically): rails.csv (and rails_rigid.csv with --rigid) "
         "(rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um), fit.csv "
         "(every input row with fitted and residual, in its unit), layout.csv (the measured "
-        "layout, for 'diffguide plan --start'), report.json, profiles.png, "
-        "curves.png. Exit codes: 0 converged; 3 results written but the fit did not converge "
-        "(flagged in report.json); 2 bad input or options (nothing written).",
+        "layout, for 'diffguide plan --start'), report.json, report.html (the metrologist's "
+        "report: straightness per rail with U, verdict, figures; one self-contained file), "
+        "profiles.png, curves.png. Exit codes: 0 converged; 3 results written but the fit did "
+        "not converge (flagged in report.json); 2 bad input or options (nothing written).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--preset", default="majda2012", choices=PRESETS,
@@ -92,6 +93,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--no-rigid", dest="rigid", action="store_const", const=False,
                    help="no rigid-table inversion (the default; overrides [fit] rigid = true)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
+    p.add_argument("--tolerance-um", type=float, default=None, metavar="T",
+                   help="straightness tolerance (µm) of every rail and plane over the measured "
+                   "length: report.html, report.json and the console judge each straightness "
+                   "(least-squares line, ISO 230-1) with its U (k = 2) by ISO 14253-1: pass if "
+                   "value + U <= T, fail if value - U > T, otherwise not decidable")
     p.add_argument("--truth", metavar="FILE.csv", default=None,
                    help="known profiles (rail,s_mm,vertical_um,horizontal_um) to score the "
                    "fits against, e.g. data/majda2012_truth.csv")
@@ -170,6 +176,9 @@ def _check_inputs(meas, args, cfg):
             raise ValueError(f"--comp-points must be in [2, 10000], got {args.comp_points}")
         check_tolerances(args)
         _check_export_options(args)
+    from ._report import check_tolerance
+
+    check_tolerance(args)
 
 
 def read_truth(path, s_m):
@@ -295,7 +304,7 @@ def run(args) -> int:
         flat = elastic.basis.gauge_fix(s_m, raw.reshape(4, -1), elastic.fix_slope)
         truth = flat.reshape(2, 2, -1)
     report, written = _write_outputs(args, meas, fits, profiles, s_m, truth, seconds,
-                                     family.base, t_start)
+                                     family.base, t_start, cfg=cfg, info=info)
     if args.export_compensation:
         _export_compensation(args, cfg, spec, points, elastic, info.get("x0_mm", 0.0))
     _say_results(args, report, fits, written, t_start)
@@ -372,12 +381,14 @@ def _say_fit(args, label, f, meas, seconds) -> None:
                    "(fitted, as ISO 230-1 removes it)")
 
 
-def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_start):
+def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_start, *,
+                   cfg, info):
     """The output folder, staged and renamed into place (figures drawn by the figures'
     process meanwhile): ``(report, names of the files written)``."""
     from ..io.fit_files import fit_csv_text, layout_csv_text, rails_csv_text
     from ..io.fit_report import fit_report
     from ..plotting.render import FigureWorker
+    from . import _report
 
     with _Staging(Path(args.out)) as staged:
         figures = getattr(args, "figures", None) or FigureWorker()
@@ -391,6 +402,9 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
                 source={"preset": None if args.config else args.preset, "config": args.config,
                         "measurements": args.measurements},
                 exit_code=0 if elastic.converged else EXIT_NOT_CONVERGED)
+            report.update(_report.sections(args, report, meas, elastic, s_m, cfg, info))
+            report_figures = None if args.no_plots else _report.submit_figures(
+                figures, staged.tmp, _report.figure_jobs(report, meas, elastic, s_m))
             files = {"rails.csv": rails_csv_text(s_m, *profiles[""])}
             if "_rigid" in fits:
                 files["rails_rigid.csv"] = rails_csv_text(s_m, *profiles["_rigid"])
@@ -400,6 +414,8 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
             files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
             staged.write(files)
             figures.wait()
+            files["report.html"] = _report.html_text(files["report.json"], report_figures)
+            staged.write({"report.html": files["report.html"]})
         except BaseException:
             figures.close(kill=True)  # stop drawing into the staging folder before it goes
             raise
@@ -421,14 +437,11 @@ def _say_results(args, report, fits, written, t_start) -> None:
     blind = undetermined_lines(report["identifiability"], elastic.waviness)
     for line in blind:
         say(args, line)
-    if blind:
-        import shlex
+    if report.get("plan_suggestion"):
+        say(args, f"what more instruments would determine there: {report['plan_suggestion']}")
+    from ._report import say_straightness
 
-        plan = (["--config", args.config] if args.config else ["--preset", args.preset]) + (
-            ["--mesh", args.mesh] if getattr(args, "mesh", None) else [])
-        plan += ["--start", str(Path(args.out) / "layout.csv")]
-        say(args, "what more instruments would determine there: diffguide plan "
-                  f"{shlex.join(plan)} --out PLAN_DIR")
+    say_straightness(args, report)
     say(args, f"wrote {args.out}/ ({', '.join(written)}) in {time.perf_counter() - t_start:.1f} s")
     if not elastic.converged:
         print(f"diffguide fit: warning: the fit did not converge ({elastic.message}); the results "

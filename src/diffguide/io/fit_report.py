@@ -194,3 +194,128 @@ def jsonable(obj):
     if isinstance(obj, np.ndarray):
         return jsonable(obj.tolist())
     return obj
+
+
+# --- the metrologist's sections: straightness with U and a verdict, compensation summary ---
+
+#: The reference line of report.json's straightness (ISO 230-1).
+STRAIGHTNESS_REFERENCE = "least-squares"
+
+
+def metrologist_sections(fit, meas, s_m, *, rail_y_mm=None, tolerance_um=None,
+                         export=None) -> dict:
+    """``report.json``'s ``straightness`` and ``compensation`` sections (user units: mm, µm,
+    µrad), the numbers that ``report.html`` and the console show.
+
+    Arguments:
+        fit: the elastic :class:`~diffguide.inverse.RailFit`. meas: its measurements.
+        s_m: the evaluation grid (m; ``rails.csv``'s). rail_y_mm: the rails' Y (mm), rail 1
+            first. tolerance_um: the straightness tolerance (µm) of the verdict, or None.
+        export: ``{"file", "format", "point"}`` of a requested compensation table, or None.
+    """
+    from ..studies.straightness import K_COVERAGE, N_SAMPLES, rail_straightness
+
+    tol = None if tolerance_um is None else tolerance_um * 1e-6
+    y = None if rail_y_mm is None else [v * 1e-3 for v in rail_y_mm]
+    rows = rail_straightness(fit, s_m, rail_y=y, tolerance=tol,
+                             reference=STRAIGHTNESS_REFERENCE)
+    step = float(np.median(np.diff(s_m))) * 1e3
+    straight = {
+        "reference_line": "least-squares reference line (ISO 230-1)",
+        "definition": "peak-to-valley of the profile's deviations from its least-squares "
+                      "reference line over the evaluated length",
+        "uncertainty_method": (
+            f"Monte Carlo (GUM Supplement 1): {N_SAMPLES} draws per profile from the fit's "
+            "posterior (spline coefficients ~ N(fitted, covariance), structure uncertainty "
+            "included); u = RMS deviation of the draws' straightness from the fitted "
+            f"profile's; U = k·u, k = {K_COVERAGE:g}"),
+        "coverage_factor": K_COVERAGE, "samples_per_profile": N_SAMPLES, "seed": 0,
+        "evaluated_s_mm": [float(s_m[0] * 1e3), float(s_m[-1] * 1e3)],
+        "grid_step_mm": step,
+        "tolerance_um": tolerance_um,
+        "decision_rule": "ISO 14253-1: pass if value + U <= tolerance, fail if value − U > "
+                         "tolerance, otherwise not decidable",
+        "not_in_U": (f"rail content shorter than about {2 * fit.basis.spacing * 1e3:.0f} mm "
+                     "(two knot spacings) is not resolved and not in U"
+                     + (f" (stated waviness {fit.waviness * 1e6:.3g} µm RMS)"
+                        if fit.waviness > 0 else "")),
+        "rails": [{"rail": r["rail"], "side": r["side"],
+                   "y_mm": None if r["y"] is None else r["y"] * 1e3,
+                   "plane": r["plane"], "straightness_um": r["value"] * 1e6,
+                   "u_um": r["u"] * 1e6, "U_um": r["U"] * 1e6,
+                   "interval_95_um": [v * 1e6 for v in r["interval_95"]],
+                   "verdict": r["verdict"]} for r in rows],
+    }
+    return {"straightness": straight, "compensation": _compensation_section(fit, meas, export)}
+
+
+def _compensation_section(fit, meas, export) -> dict:
+    """Per channel: the fitted error's range over the measured positions (what a compensation
+    from the model removes) and the residual RMS (what stays if the model is right); user
+    units (µm or µrad)."""
+    chan = meas.channel_index()
+    rows = []
+    for c in range(len(meas.channels)):
+        sel = chan == c
+        f = fit.fitted[sel] * 1e6
+        rms = float(np.sqrt(np.mean(fit.residual[sel] ** 2)) * 1e6)
+        q = QUANTITIES[meas.channels[c][1]]
+        rows.append({"channel": meas.channel_label(c), "quantity": q,
+                     "unit": "µm" if q in ("EXX", "EYX", "EZX") else "µrad",
+                     "fitted_range_user": float(f.max() - f.min()),
+                     "residual_rms_user": rms})
+    return {
+        "channels": rows, "export": export,
+        "note": "a compensation from the fitted model removes about the fitted range and "
+                "leaves about the residual RMS (more where the stroke goes beyond the "
+                "measured positions); it helps where the range is well above the residual",
+    }
+
+
+def stamp_section(meas, source: dict, info: dict | None = None) -> dict:
+    """``report.json``'s ``stamp``: the machine, the measurement files with the metadata of
+    their header (``#`` comment lines at the top, and ``key: value`` or ``key = value`` lines
+    there), the readings' notes where they carry any, the layout and x0 read, the date (UTC)
+    and the diffguide version."""
+    import datetime
+    import os
+
+    from .._core.version import __version__
+
+    files = source["measurements"]
+    files = [files] if isinstance(files, (str, os.PathLike)) else list(files)
+    notes: dict[str, None] = {}
+    for r in meas.readings:
+        n = getattr(r, "notes", None)
+        items = n.items() if isinstance(n, dict) else [n] if isinstance(n, str) else (n or ())
+        for item in items:
+            notes.setdefault(" = ".join(map(str, item)) if isinstance(item, tuple)
+                             else str(item))
+    return {
+        "machine": source["config"] or f"preset {source['preset']}",
+        "files": [{"file": str(f), "header": _file_header(f)} for f in files],
+        "reading_notes": list(notes)[:50],
+        "layout": (info or {}).get("layout"), "x0_mm": (info or {}).get("x0_mm"),
+        "date_utc": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "diffguide": __version__,
+    }
+
+
+def _file_header(path, max_lines: int = 30) -> list[str]:
+    """The leading comment lines of a measurement file (``#``, ``//`` or ``;``), stripped of
+    the marker (a file that cannot be read gives none)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8192)
+    except OSError:
+        return []
+    lines = []
+    for raw in head.decode("utf-8", errors="replace").lstrip("\ufeff").splitlines()[:max_lines]:
+        line = raw.strip()
+        marker = next((m for m in ("#", "//", ";") if line.startswith(m)), None)
+        if marker is None:
+            if line:
+                break
+            continue
+        lines.append(line[len(marker):].strip())
+    return [ln for ln in lines if ln]

@@ -1,5 +1,6 @@
 """Studies built on the machine: Monte Carlo tolerance sweeps over random rails, sensitivity
-(gradients, influence maps), CNC compensation tables."""
+(gradients, influence maps), CNC compensation tables, the fitted rails' straightness with its
+uncertainty and verdict."""
 
 from .compensation import compensation_table as compensation_table
 from .compensation import location_warnings as location_warnings
@@ -11,3 +12,5 @@ from .random_rails import RailBatch as RailBatch
 from .random_rails import sample_rails as sample_rails
 from .sensitivity import influence_map as influence_map
 from .sensitivity import roll_spread as roll_spread
+from .straightness import rail_straightness as rail_straightness
+from .straightness import straightness as straightness
