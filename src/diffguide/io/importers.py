@@ -192,6 +192,11 @@ def parse_wide(
                 )
             cols, lookup = _wide_columns(fields, name, number, notes)
             table = (cols, lookup, fields, number)
+            if info is not None:
+                info.setdefault("blocks", []).append(
+                    f"line {number}: {meta['quantity']} [{meta['unit']}] at {meta['point']}"
+                    f" ({meta.get('instrument', 'default instrument')}), "
+                    f"{len([c for c in cols.values() if not c[2]])} run columns")
             continue
         if table is None:
             raise ValueError(
@@ -309,10 +314,10 @@ def import_readings(
     if prof is not None:
         readings = parse_profile(text, prof, name, notes, info)
         x = prof.get("x0_mm")
-        stated = None
+        stated = info.pop("x0_stated", None)
         if x == "middle":
             x0_mm = x if x0_mm is None else x0_mm
-        elif x is not None:
+        elif x is not None and stated is None:
             stated = (float(x), 0)
         info["layout"] = f"profile {prof['_source']}"
         return shift_x0(readings, x0_mm, stated, name, notes, info)
@@ -332,6 +337,8 @@ def _explain_csv(text, name, layout, info) -> None:
     """The separator, decimal mark and header of a canonical file, for ``--explain``."""
     for number, line in _content_lines(text):
         d = sniff_delimiter(line)
+        if layout == "wide" and split_line(line, d, name, number)[0].lower() not in WIDE_TARGET:
+            continue
         info["separator"] = {"\t": "tab"}.get(d, d)
         info["decimal"] = "," if d != "," else "."
         info["header_line"] = number

@@ -14,7 +14,8 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
 - ``quantity``: ``EXX``, ``EYX``, ``EZX`` (``µm``/``um``, ``mm``, ``nm``, ``in``, ``µin``/``uin``)
   or ``EAX``, ``EBX``, ``ECX`` (``µm/m``/``um/m``, ``µrad``/``urad``, ``mrad``, ``rad``, ``mm/m``,
   ``arcsec``/``arc-sec``/``"``, ``arcmin``, ``deg``; case and spaces do not matter).
-  ``value`` and ``sigma`` (> 0, the standard uncertainty of *one reading*) are in ``unit``; ``value`` (and ``reference``) within
+  ``value`` and ``sigma`` (> 0, the standard uncertainty of *one reading*) are in ``unit``;
+  ``value`` (and ``reference``) within
   ±10000 µm for a linear error, ±10000 µm/m (10 mrad) for an angle (:data:`VALUE_LIMIT`); a
   stated ``sigma`` must be > 0 and within the same limit.
 - ``run``: a label of the run (default: one run); rows that repeat the position, point,

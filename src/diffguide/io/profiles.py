@@ -47,8 +47,9 @@ FIELDS = ("point", "x_mm", "y_mm", "quantity", "unit", "instrument", "sigma", "r
 _NUMERIC = ("x_mm", "y_mm", "sigma", "z_mm", "resolution", "reference", "sign", "runs")
 _TOP = {"name": str, "description": str, "encoding": str, "separator": str, "decimal": str,
         "comment": (str, list), "inline_comment": str, "skip_lines": int,
-        "x0_mm": (int, float, str), "metadata_separator": str, "table": dict, "targets": dict,
-        "blocks": dict, "reading": dict, "values": list, "aliases": dict}
+        "x0_mm": (int, float, str), "x0_mm_meta": str, "metadata_separator": str,
+        "table": dict, "targets": dict, "blocks": dict, "reading": dict, "values": list,
+        "aliases": dict}
 _TABLE = {"start": str, "header": bool, "end": str, "position": (str, int, list),
           "position_unit": str, "position_index": (str, int, list)}
 _SEPARATORS = {"auto": None, ",": ",", ";": ";", "tab": "\t", "\t": "\t", "|": "|",
@@ -234,8 +235,12 @@ def _key_value(ctx: _Ctx, line: str):
     return None
 
 
-def _column(ctx, ref, header, what, line) -> int:
-    """0-based index of the column ``ref`` (a name, names, or a 1-based index)."""
+def _column(ctx, ref, header, what, line) -> int | None:
+    """0-based index of the column ``ref`` (a name, names, or a 1-based index; a name that
+    starts with ``?`` is optional: ``None`` when absent)."""
+    if isinstance(ref, str) and ref.startswith("?"):
+        low = [h.strip().lower() for h in header or []]
+        return low.index(ref[1:].strip().lower()) if ref[1:].strip().lower() in low else None
     if isinstance(ref, int):
         if ref < 1 or (header is not None and ref > len(header)):
             ctx.fail(line, f"{what}: column {ref} does not exist"
@@ -262,14 +267,18 @@ class _Table:
         self.fields = {}  # field -> column, from [reading]
         for k, v in prof.get("reading", {}).items():
             if k.endswith("_column"):
-                self.fields[k[:-7]] = _column(ctx, v, header, f"reading.{k}", line)
+                c = _column(ctx, v, header, f"reading.{k}", line)
+                if c is not None:
+                    self.fields[k[:-7]] = c
         used = {self.position, *self.fields.values()}
         self.values = []  # (column, spec, groups, {field: column})
         for n, spec in enumerate(prof["values"], start=1):
             cols = {}
             for k, v in spec.items():
                 if k.endswith("_column") and not (k == "reference_column" and "{column}" in v):
-                    cols[k[:-7]] = _column(ctx, v, header, f"values[{n}].{k}", line)
+                    c = _column(ctx, v, header, f"values[{n}].{k}", line)
+                    if c is not None:
+                        cols[k[:-7]] = c
             used |= set(cols.values())
             if "column" in spec:
                 k = _column(ctx, spec["column"], header, f"values[{n}].column", line)
@@ -301,6 +310,8 @@ def _given(ctx, level, field, meta, line):
     """A literal ``field`` or a ``field_meta`` of one profile level (``None``: neither)."""
     if field + "_meta" in level:
         key = _meta_key(level[field + "_meta"])
+        if key.startswith("?"):  # optional
+            return meta[key[1:]][0] if key[1:] in meta else level.get(field)
         if key not in meta:
             ctx.fail(line, f"{field}_meta: metadata key {level[field + '_meta']!r} not found "
                      f"(keys read: {', '.join(v[2] for v in meta.values()) or 'none'})")
@@ -361,7 +372,8 @@ def _readings_of_row(ctx, row, line, meta, targets) -> list:
             ctx.info["missing_cells"] = ctx.info.get("missing_cells", 0) + 1
             continue
         f = {name: _field(ctx, name, spec, groups, cols, row, meta, line) for name in FIELDS}
-        f = {n: (str(v) if not isinstance(v, dict) else v) for n, v in f.items() if v is not None}
+        f = {n: (str(v) if not isinstance(v, dict) else v) for n, v in f.items()
+             if v is not None and v != ""}
         for name in ("point", "quantity", "instrument", "direction", "run"):
             if name in f:
                 f[name] = str(_alias(ctx, name, f[name])).strip()
@@ -403,9 +415,12 @@ def _readings_of_row(ctx, row, line, meta, targets) -> list:
         except _RowError as exc:
             col = table.header[k] if table.header else f"column {k + 1}"
             ctx.fail(line, str(exc).replace("field 'value'", f"column {col!r}"))
-        ctx.info.setdefault("columns", {}).setdefault(
-            table.header[k] if table.header else f"column {k + 1}",
-            f"{out[-1].quantity} in {unit} at {out[-1].point}")
+        seen = ctx.info.setdefault("columns", {}).setdefault(
+            table.header[k] if table.header else f"column {k + 1}", [])
+        what = f"{out[-1].quantity} [{unit}] at {out[-1].point}" + (
+            f", sign {sign}" if float(sign) < 0 else "")
+        if what not in seen:
+            seen.append(what)
     return out
 
 
@@ -464,6 +479,9 @@ def parse_profile(text: str, prof: dict, name: str = "<text>", notes: list | Non
             meta = dict(file_meta)
             meta.update({_meta_key(k): (v, number, k) for k, v in m.groupdict().items() if v})
             state, in_block, skipping = "pre", True, False
+            kv = _key_value(ctx, line)
+            if kv is not None:  # a block's first metadata line
+                meta[_meta_key(kv[0])] = (kv[1], number, kv[0])
             continue
         if bskip and bskip.search(line):
             skipping, state = True, "pre"
@@ -492,8 +510,9 @@ def parse_profile(text: str, prof: dict, name: str = "<text>", notes: list | Non
                                                  targets) or []
                     continue
             elif ctx.table.ignored and notes is not None:
-                notes.append(f"{name}:{number}: column(s) {', '.join(ctx.table.ignored)} "
-                             "ignored (not in the profile)")
+                text = f"column(s) {', '.join(ctx.table.ignored)} ignored (not in the profile)"
+                if not any(n.endswith(text) for n in notes):  # once per file, not per block
+                    notes.append(f"{name}:{number}: {text}")
             state = "table"
             continue
         kv = _key_value(ctx, line)
@@ -502,7 +521,7 @@ def parse_profile(text: str, prof: dict, name: str = "<text>", notes: list | Non
             meta[_meta_key(kv[0])] = entry
             if not in_block and not tables:
                 file_meta[_meta_key(kv[0])] = entry
-            info.setdefault("metadata", {})[kv[0]] = kv[1]
+                info.setdefault("metadata", {})[kv[0]] = kv[1]
             continue
         if tables:
             ctx.fail(number, f"not a data line ({line[:40]!r}: the position is not a number) "
@@ -518,6 +537,16 @@ def parse_profile(text: str, prof: dict, name: str = "<text>", notes: list | Non
         where = (f"a line matching table.start {t['start']!r}" if start else "the first line")
         raise ValueError(f"{name}:1: no readings read through profile {prof['_source']} "
                          f"(the table is expected at {where})")
+    if "x0_mm_meta" in prof:
+        key = _meta_key(prof["x0_mm_meta"]).lstrip("?")
+        if key in file_meta:
+            raw = ctx.number_text(file_meta[key][0])
+            if not _NUMBER.match(raw):
+                ctx.fail(file_meta[key][1], f"x0_mm_meta: {file_meta[key][0]!r} is not a number "
+                         "(allowed the machine coordinate of x = 0 in mm)")
+            info["x0_stated"] = (float(raw), file_meta[key][1])
+        elif not prof["x0_mm_meta"].startswith("?"):
+            ctx.fail(1, f"x0_mm_meta: metadata key {prof['x0_mm_meta']!r} not found")
     info["readings"] = len(readings)
     info["decimal"] = ctx.decimal if ctx.decimal != "auto" else (
         "," if ctx.sep not in (",", None) else ".")
