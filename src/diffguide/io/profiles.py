@@ -374,15 +374,20 @@ def _readings_of_row(ctx, row, line, meta, targets) -> list:
         f = {name: _field(ctx, name, spec, groups, cols, row, meta, line) for name in FIELDS}
         f = {n: (str(v) if not isinstance(v, dict) else v) for n, v in f.items()
              if v is not None and v != ""}
-        for name in ("point", "quantity", "instrument", "direction", "run"):
+        if isinstance(f.get("quantity"), dict):
+            ctx.fail(line, "quantity: a table of values per quantity is not allowed here")
+        quantity = str(_alias(ctx, "quantity", f.get("quantity", ""))).strip().upper()
+        kind = "LINEAR" if quantity in ("EXX", "EYX", "EZX") else "ANGULAR"
+        for n, v in list(f.items()):  # a table of values per quantity (or kind, or default)
+            if isinstance(v, dict):
+                by = {str(k).upper(): x for k, x in v.items()}
+                v = by.get(quantity, by.get(kind, by.get("DEFAULT")))
+                f[n] = "" if v is None else str(v)
+        f = {n: v for n, v in f.items() if v != ""}
+        for name in ("point", "instrument", "direction", "run"):
             if name in f:
                 f[name] = str(_alias(ctx, name, f[name])).strip()
-        quantity = f.get("quantity", "").upper()
-        unit = f.get("unit", "")
-        if isinstance(unit, dict):
-            kind = "linear" if quantity in ("EXX", "EYX", "EZX") else "angular"
-            unit = unit.get(quantity, unit.get(kind, ""))
-        unit = str(_alias(ctx, "unit", unit))
+        unit = str(_alias(ctx, "unit", f.get("unit", "")))
         d = f.get("direction", "forward").lower()
         if d not in _FORWARD + _BACKWARD:
             ctx.fail(line, f"direction {f['direction']!r} is not a known word (forward: "
@@ -527,6 +532,10 @@ def parse_profile(text: str, prof: dict, name: str = "<text>", notes: list | Non
             ctx.fail(number, f"not a data line ({line[:40]!r}: the position is not a number) "
                      "and not a metadata line after the table")
         skipped.append(number)
+    if info.get("blocks_skipped") and notes is not None:
+        shown = info["blocks_skipped"]
+        notes.append(f"{name}: {len(shown)} section(s) skipped by blocks.skip: "
+                     f"{', '.join(shown[:6])}{' ...' if len(shown) > 6 else ''}")
     if skipped:
         info["lines_skipped"] = skipped
         if notes is not None:
