@@ -472,9 +472,11 @@ def format_long(readings, comment: str = "") -> str:
 
 
 def merged_table(meas) -> np.ndarray:
-    """``(n, 5)``: position (mm), point index, quantity index, value and σ (µm, µm/m) of merged
-    data, sorted — for comparing two files' merged data."""
+    """``(n, 5)``: position (mm), point (its rank among the names, sorted), quantity index,
+    value and σ (µm, µm/m) of merged data, sorted — for comparing two files' merged data."""
+    rank = np.argsort(np.argsort(np.array(meas.point_names)))
     a = np.column_stack(
-        [meas.position * 1e3, meas.point, meas.quantity, meas.value * 1e6, meas.sigma * 1e6]
+        [meas.position * 1e3, rank[meas.point], meas.quantity, meas.value * 1e6,
+         meas.sigma * 1e6]
     )
-    return a[np.lexsort(a[:, 2::-1].T)]
+    return a[np.lexsort((a[:, 2], a[:, 1], np.round(a[:, 0], 6)))]  # positions to 1 nm

@@ -113,7 +113,7 @@ def _field_keys() -> dict:
 def check_profile(prof: dict, source: str = "<profile>") -> None:
     """``ProfileError`` naming the key for an unknown key, a wrong type, a bad regular
     expression or value."""
-    _check_keys(prof, _TOP, "", source)
+    _check_keys({k: v for k, v in prof.items() if k != "_source"}, _TOP, "", source)
     _check_keys(prof.get("table", {}), _TABLE, "table.", source)
     _check_keys(prof.get("targets", {}), {"start": str}, "targets.", source)
     _check_keys(prof.get("blocks", {}), {"start": str, "skip": str}, "blocks.", source)

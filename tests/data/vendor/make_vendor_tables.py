@@ -140,10 +140,11 @@ def inch_tab(rows):
     return ("\n".join(lines) + "\n").encode("ascii"), _canonical(canon)
 
 
-def iso_summary(rows):
+def iso_summary(rows, x0=X0_MM, builtin=False):
     sel = _select(rows, "P3", "EBX", runs=("1", "2", "3", "4", "5"))
-    lines = ["Positioniergenauigkeit – ISO 230-2 Auswertung", "Point;P3", "X (mm);-450",
-             "Y (mm);-200", "Quantity;EBX", "Unit;µm/m", "Instrument;level", "Runs;5", "",
+    xy = ("x_mm;-450", "y_mm;-200") if builtin else ("X (mm);-450", "Y (mm);-200")
+    lines = ["Positioniergenauigkeit – ISO 230-2 Auswertung", "Point;P3", *xy,
+             "Quantity;EBX", "Unit;µm/m", "Instrument;level", "Runs;5", "",
              "Target (mm);Mean fwd;Mean bwd;s fwd;s bwd;R fwd;R bwd;B"]
     canon = []
     by = {}
@@ -151,7 +152,7 @@ def iso_summary(rows):
         by.setdefault(float(r["position_mm"]), {}).setdefault(r["direction"], []).append(
             float(r["value"]))
     for x, dirs in sorted(by.items()):
-        cells = [f"{x + X0_MM:.1f}"]
+        cells = [f"{x + x0:.1f}"]
         stats = {}
         for d in ("forward", "backward"):
             v = dirs[d]
@@ -168,7 +169,7 @@ def iso_summary(rows):
     return ("\r\n".join(lines) + "\r\n").encode("cp1252"), _canonical(canon)
 
 
-def grid_exx(rows):
+def grid_exx(rows, x0=X0_MM):
     lines = ["// Etalon vendor exchange file, X axis, LaserTRACER", "// units: mm, rad",
              "[C0B]", "VALUE = 0.000022355737"]
     canon = []
@@ -177,18 +178,19 @@ def grid_exx(rows):
         lines += [f"[{q}]", "Gridpoints = {"]
         for r in sel:
             rad = f"{float(r['value']) * 1e-6:.12f}"
-            lines.append(f"          {float(r['position_mm']) + X0_MM:.1f} {rad}")
+            lines.append(f"          {float(r['position_mm']) + x0:.1f} {rad}")
             canon.append({**r, "value": rad, "unit": "rad"})
         lines.append(f"}}  // end of {q}")
     lines += ["[EXY]", "Gridpoints = {", "   0.0 0.0", "   700.0 0.000001", "}"]
     return ("\n".join(lines) + "\n").encode("ascii"), _canonical(canon)
 
 
-def sixdof(rows):
+def sixdof(rows, builtin=False):
     targets = sorted({float(r["position_mm"]) for r in rows})
     measured = {(float(r["position_mm"]), r["run"], r["direction"], r["quantity"]): r["value"]
                 for r in rows if r["point"] == "P4" and r["run"] in ("1", "2")}
-    lines = ["6-DOF measurement", "Point: P4", "X (mm): 450", "Y (mm): -200", "",
+    xy = ("x_mm: 450", "y_mm: -200") if builtin else ("X (mm): 450", "Y (mm): -200")
+    lines = ["6-DOF measurement", "Point: P4", *xy, "",
              "Target (mm),Run,Direction,Linear (µm),Horizontal straightness (µm),"
              "Vertical straightness (µm),Roll (µrad),Pitch (µrad),Yaw (µrad)"]
     canon = []
@@ -207,6 +209,7 @@ def sixdof(rows):
                                   "unit": "um" if q in ("EXX", "EYX", "EZX") else "urad",
                                   "run": run, "direction": d, "instrument": "interferometer"})
                 yaw = vals["ECX"][1:] if vals["ECX"].startswith("-") else "-" + vals["ECX"]
+                yaw = vals["ECX"] if builtin else yaw  # the built-in profile has no sign
                 lines.append(",".join([f"{x:.1f}", run, d] + [vals[q] for q in (
                     "EXX", "EYX", "EZX", "EAX", "EBX")] + [yaw]))
     return ("\n".join(lines) + "\n").encode("utf-8"), _canonical(canon)
@@ -238,6 +241,25 @@ def write_all(folder) -> dict:
     return out
 
 
+#: the examples of the built-in profiles (data/examples/): file name -> maker
+EXAMPLES = {
+    "exx_grid.exx": lambda rows: grid_exx(rows, x0=0.0),
+    "iso230-2-summary.csv": lambda rows: iso_summary(rows, x0=0.0, builtin=True),
+    "6dof.csv": lambda rows: sixdof(rows, builtin=True),
+}
+
+
+def write_examples(folder) -> None:
+    """The built-in profiles' example files and their canonical twins, in ``folder``."""
+    rows = _rows()
+    for name, make in EXAMPLES.items():
+        data, canon = make(rows)
+        (Path(folder) / name).write_bytes(data)
+        (Path(folder) / f"{name}.canonical.csv").write_text(canon, encoding="utf-8")
+        print(f"wrote {os.path.join(folder, name)}")
+
+
 if __name__ == "__main__":
     for name in write_all(HERE):
         print(f"wrote {os.path.join(HERE, name)}")
+    write_examples(HERE.parents[2] / "data" / "examples")
