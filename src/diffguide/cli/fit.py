@@ -324,7 +324,7 @@ def _read(args, cfg, info: dict):
     notes: list[str] = []
     meas = read_any(args.measurements, args.layout, args.x0_mm, notes, info,
                     allow_many_positions=args.allow_many_positions,
-                    profile=load_profile_args(args), encoding=args.encoding)
+                    profile=load_profile_args(args, args.measurements), encoding=args.encoding)
     args.input_info = info
     for n in notes:
         say(args, f"note: {n}")

@@ -33,11 +33,12 @@ def profile_sets(items) -> dict:
 
 def add_input_options(p, several: str) -> None:
     """The options that say how measurement files are read (import and fit share them)."""
-    p.add_argument("--profile", metavar="NAME|FILE.toml", default=None,
+    p.add_argument("--profile", metavar="NAME|FILE.toml", action="append", default=None,
                    help="read the file(s) through a profile: a built-in one ("
                    "exx, iso230-2-summary, 6dof, long, wide) or a TOML file mapping a vendor's "
                    "table onto the readings (README 'File formats', docs/file-formats.md); "
-                   "default: the canonical long/wide layouts, detected")
+                   "once for every file, or once per file in their order ('auto': that file "
+                   "in a canonical layout); default: the canonical long/wide layouts, detected")
     p.add_argument("--profile-set", metavar="KEY=VALUE", action="append", default=None,
                    help="set a [reading] key of the profile (repeatable), e.g. point=P5, "
                    "x_mm=0, sign=-1")
@@ -89,20 +90,31 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
-def load_profile_args(args):
-    """The profile of ``--profile`` with ``--profile-set`` applied (``None`` without one)."""
+def load_profile_args(args, files):
+    """The profile of each file in ``files`` (``--profile``, once or once per file, with
+    ``--profile-set`` applied; ``None``: a canonical layout)."""
     from ..io.profiles import check_profile, load_profile
 
-    if args.profile is None:
+    names = args.profile or []
+    if not names:
         if args.profile_set:
             raise ValueError("--profile-set needs --profile")
-        return None
-    prof = load_profile(args.profile)
+        return [None] * len(files)
+    if len(names) not in (1, len(files)):
+        raise ValueError(f"{len(names)} --profile options for {len(files)} files (allowed: one "
+                         "for every file, or one per file in their order)")
     sets = profile_sets(args.profile_set)
-    if sets:
-        prof.setdefault("reading", {}).update(sets)
-        check_profile(prof, f"{prof['_source']} with --profile-set")
-    return prof
+    loaded = {}
+    for name in dict.fromkeys(names):
+        if name == "auto":
+            loaded[name] = None
+            continue
+        prof = load_profile(name)
+        if sets:
+            prof.setdefault("reading", {}).update(sets)
+            check_profile(prof, f"{prof['_source']} with --profile-set")
+        loaded[name] = prof
+    return [loaded[n] for n in (names * len(files) if len(names) == 1 else names)]
 
 
 def explain_lines(infos) -> list[str]:
@@ -148,7 +160,7 @@ def run(args) -> int:
     notes: list[str] = []
     infos: list[dict] = []
     readings = import_many(args.input, args.layout, args.x0_mm, notes, infos,
-                           profile=load_profile_args(args), encoding=args.encoding)
+                           profile=load_profile_args(args, args.input), encoding=args.encoding)
     for info in infos:
         info["readings"] = sum(r.source == info["file"] for r in readings)
     source = ", ".join(args.input)

@@ -353,18 +353,22 @@ def import_many(paths, layout: str = "auto", x0_mm=None, notes: list | None = No
     (point, quantity, instrument) at different heights ``z_mm``, is refused naming both files;
     a run label that two files use for the same channel and direction is made distinct (the
     second file's runs are other runs), with a note. ``x0_mm="middle"``: the middle of all
-    files' targets."""
+    files' targets. ``profile``: one for every file, or a list, one per file (``None``: a
+    canonical layout)."""
     paths = [os.fspath(p) for p in paths]
     if not paths:
         raise ValueError("no measurement file given")
     dup = sorted({p for p in paths if paths.count(p) > 1})
     if dup:
         raise ValueError(f"{dup[0]}: the same measurement file is given twice (each file once)")
+    profiles = list(profile) if isinstance(profile, (list, tuple)) else [profile] * len(paths)
+    if len(profiles) != len(paths):
+        raise ValueError(f"{len(profiles)} profiles for {len(paths)} files (one per file)")
     per_file = []
-    for path in paths:
+    for path, prof in zip(paths, profiles):
         info: dict = {"file": path}
         rs = import_readings(path, layout, None if x0_mm == "middle" else x0_mm, notes, info,
-                             profile=profile, encoding=encoding)
+                             profile=prof, encoding=encoding)
         per_file.append(rs)
         if infos is not None:
             infos.append(info)
