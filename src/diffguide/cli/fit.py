@@ -144,8 +144,11 @@ def _check_inputs(meas, args, cfg):
     bad = np.abs(meas.position) > stroke / 2 + 1e-9
     if bad.any():
         x = meas.position[bad][0]
+        x0 = getattr(args, "input_info", {}).get("x0_mm", 0.0)
         raise ValueError(f"{meas.source}: position {x * 1e3:g} mm is outside the {name} "
-                         f"stroke (±{stroke / 2 * 1e3:g} mm)")
+                         f"stroke (±{stroke / 2 * 1e3:g} mm; x = X − x0 with x0 = {x0:g} mm: "
+                         "for positions in machine coordinates give --x0-mm, the machine "
+                         "coordinate of mid-stroke, or --x0-mm middle)")
     if len(np.unique(np.round(meas.position, 9))) < 4:
         raise ValueError(f"{meas.source}: at least 4 distinct positions are needed for a fit")
     if args.knot_spacing_mm is not None and not (1.0 <= args.knot_spacing_mm <= 1000.0):
@@ -326,6 +329,9 @@ def _read(args, cfg, info: dict):
                     allow_many_positions=args.allow_many_positions,
                     profile=load_profile_args(args, args.measurements), encoding=args.encoding)
     args.input_info = info
+    if args.machine_x0_mm is not None and not args.export_compensation:
+        notes.append("--machine-x0-mm places the compensation table: without "
+                     "--export-compensation it is only stated in report.json")
     for n in notes:
         say(args, f"note: {n}")
     _check_inputs(meas, args, cfg)

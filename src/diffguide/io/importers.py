@@ -312,6 +312,9 @@ def import_readings(
     wanted = encoding or (prof.get("encoding", "auto") if prof else "auto")
     text = read_text(path, wanted, info)
     if prof is not None:
+        if layout != "auto":
+            raise ValueError(f"{name}: layout {layout!r} and a profile both given (a profile "
+                             "says how the file is laid out: give one of them)")
         readings = parse_profile(text, prof, name, notes, info)
         x = prof.get("x0_mm")
         stated = info.pop("x0_stated", None)
