@@ -106,8 +106,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--export-compensation", metavar="FILE",
                    help="write a compensation table predicted by the fitted model for the point "
                    "--at over the stroke, in machine coordinates (X = x + --machine-x0-mm), "
-                   "with σ (a "
-                   "column, or FILE's companion .sigma.csv); see --format")
+                   "with σ (a column, or FILE's companion .sigma.csv); see --format")
     p.add_argument("--format", dest="comp_format", default="csv",
                    choices=("csv", "isg", "siemens-cec", "heidenhain", "fanuc"),
                    help="format of --export-compensation: csv (errors and σ, µm/µrad), isg "

@@ -162,7 +162,7 @@ def check_profile(prof: dict, source: str = "<profile>") -> None:
         refs = [table.get("position", table.get("position_index"))]
         refs += [v.get("column") for v in values] + [
             s[k] for s in (prof.get("reading", {}), *values) for k in s if k.endswith("_column")]
-        if "match" in "".join(str(v.keys()) for v in values) or any(
+        if any("match" in v for v in values) or any(
                 r is not None and not isinstance(r, int) for r in refs):
             raise ProfileError(f"{source}: with table.header = false every column is a 1-based "
                                "index (and [[values]] use 'column', not 'match')")
