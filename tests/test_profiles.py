@@ -212,3 +212,18 @@ def test_import_explain_says_what_was_read(tables, capsys, tmp_path):
     captured = capsys.readouterr()
     assert "column 'column 2' -> EBX [rad] at P5, ECX [rad] at P5" in captured.out
     assert "section(s) skipped by blocks.skip: [C0B], [EXY]" in captured.err
+
+
+def test_sign_per_channel(tables):
+    """``sign = { "P1:EAX" = -1 }`` turns the reversed level's readings back as
+    ``{ EAX = -1 }`` does; the same sign on another point's channel leaves them negated."""
+    table, canonical, profile = tables["levels_latin1.csv"]
+    ref = merged_table(read_any(canonical))
+    prof = load_profile(str(profile))
+    prof["reading"]["sign"] = {"P1:EAX": -1, "default": 1}
+    _same(merged_table(read_any(table, profile=prof)), ref)
+    prof["reading"]["sign"] = {"P2:EAX": -1}
+    got = merged_table(read_any(table, profile=prof))
+    eax = got[:, 2] == 3  # QUANTITIES.index("EAX")
+    np.testing.assert_allclose(got[eax, 3], -ref[eax, 3], atol=1e-9)
+    np.testing.assert_allclose(got[~eax, 3], ref[~eax, 3], atol=1e-9)

@@ -137,6 +137,8 @@ def explain_lines(infos) -> list[str]:
         for col, what in info.get("columns", {}).items():
             shown = ", ".join(what[:4]) + (f" (+{len(what) - 4} more)" if len(what) > 4 else "")
             out.append(f"  column {col!r} -> {shown}")
+        if info.get("channels"):
+            out.append(f"  channels: {', '.join(info['channels'])}")
         out.append(f"  x0 = {info['x0_mm']:g} mm ({info['x0_source']})")
         read = [f"{info['readings']} readings" if "readings" in info else "",
                 f"{info['rows']} table rows" if "rows" in info else "",
@@ -162,7 +164,9 @@ def run(args) -> int:
     readings = import_many(args.input, args.layout, args.x0_mm, notes, infos,
                            profile=load_profile_args(args, args.input), encoding=args.encoding)
     for info in infos:
-        info["readings"] = sum(r.source == info["file"] for r in readings)
+        mine = [r for r in readings if r.source == info["file"]]
+        info["readings"] = len(mine)
+        info["channels"] = sorted({f"{r.quantity} at {r.point} ({r.instrument})" for r in mine})
     source = ", ".join(args.input)
     meas = merge_readings(readings, source=source, notes=notes,  # validates what fit sees
                           allow_many_positions=args.allow_many_positions)

@@ -378,10 +378,12 @@ def _readings_of_row(ctx, row, line, meta, targets) -> list:
             ctx.fail(line, "quantity: a table of values per quantity is not allowed here")
         quantity = str(_alias(ctx, "quantity", f.get("quantity", ""))).strip().upper()
         kind = "LINEAR" if quantity in ("EXX", "EYX", "EZX") else "ANGULAR"
-        for n, v in list(f.items()):  # a table of values per quantity (or kind, or default)
+        point = str(_alias(ctx, "point", f.get("point", ""))).strip().upper()
+        for n, v in list(f.items()):  # a table by channel, quantity, kind or default
             if isinstance(v, dict):
-                by = {str(k).upper(): x for k, x in v.items()}
-                v = by.get(quantity, by.get(kind, by.get("DEFAULT")))
+                by = {str(k).upper().replace(" ", ""): x for k, x in v.items()}
+                v = next((by[k] for k in (f"{point}:{quantity}", quantity, kind, "DEFAULT")
+                          if k in by), None)
                 f[n] = "" if v is None else str(v)
         f = {n: v for n, v in f.items() if v != ""}
         for name in ("point", "instrument", "direction", "run"):
