@@ -6,7 +6,8 @@ layout), written as instrument software would, and reads back (``diffguide impor
 
 - ``majda2012_measurements_wide.csv`` — the wide "targets × runs" layout (ISO 230-2 style,
   ``diffguide.io.importers``): one block per channel, ``;`` separated with decimal commas,
-  targets in machine coordinates (x = target − 400 mm: the stroke runs 50–750 mm), a
+  targets in machine coordinates (x = target − 400 mm, stated by its ``x0_mm`` line: the
+  stroke runs 50–750 mm), a
   temperature column (ignored with a note), levels in mm/m.
 - ``majda2012_measurements_semicolon.csv`` — the long layout as a German-locale export: tab
   separated, decimal commas, directions ``positive``/``negative``, a ``temperature_C`` column,
@@ -44,6 +45,7 @@ def wide(rows) -> str:
         "# diffguide wide measurement layout (targets x runs), made from "
         "majda2012_measurements.csv",
         "# targets in machine coordinates: x = target - 400 mm",
+        "x0_mm;400,0",
     ]
     channels = {}
     for r in rows:

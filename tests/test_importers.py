@@ -27,7 +27,7 @@ def canonical():
 @pytest.mark.parametrize(
     "name, x0_mm, layout",
     [
-        ("majda2012_measurements_wide.csv", None, "wide"),  # x0: middle of the targets (400 mm)
+        ("majda2012_measurements_wide.csv", None, "wide"),  # x0: the file's x0_mm line (400 mm)
         ("majda2012_measurements_semicolon.csv", 400.0, "long"),
     ],
 )
@@ -97,7 +97,7 @@ target_mm;run1_fwd;run1_fwd_ref;run1_bwd;run1_bwd_ref;run2_fwd;run2_fwd_ref;run2
 
 def test_wide_differential_pair_and_default_x0(tmp_path):
     notes = []
-    m = read_any(_write(tmp_path, WIDE), notes=notes)
+    m = read_any(_write(tmp_path, WIDE), x0_mm="middle", notes=notes)
     assert m.point_names == ("P9",)
     np.testing.assert_allclose(m.points_xy, [[0.1, -0.05]])
     # x0 = middle of 100 and 300 mm
@@ -108,8 +108,10 @@ def test_wide_differential_pair_and_default_x0(tmp_path):
     np.testing.assert_allclose(m.value[i] * 1e6, [5.0, 1.875])
     np.testing.assert_allclose(m.reversal[i] * 1e6, [4.5 - 5.5, 1.25 - 2.5])
     assert any("'T'" in n or " T " in n or "T ignored" in n for n in notes)
-    m2 = read_any(_write(tmp_path, WIDE), x0_mm=0.0)
+    m2 = read_any(_write(tmp_path, WIDE))  # the default x0 is 0 in every layout
     np.testing.assert_allclose(np.sort(m2.position), [0.1, 0.3])
+    m3 = read_any(_write(tmp_path, "x0_mm;250\n" + WIDE))  # the file's own x0
+    np.testing.assert_allclose(np.sort(m3.position), [-0.15, 0.05])
 
 
 def test_wide_resolution_line_survives_import(tmp_path):

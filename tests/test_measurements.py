@@ -95,7 +95,10 @@ def test_structural_errors(tmp_path):
         read_measurements(tmp_path / "missing.csv")
     p = tmp_path / "bin.csv"
     p.write_bytes(HEADER.encode() + b"\n0,P1,0,0,EBX,\xff,um/m\n")
-    with pytest.raises(ValueError, match=r":2: not UTF-8"):
+    with pytest.raises(ValueError, match=r":2: field 'value': not a number, got 'ÿ'"):
+        read_measurements(p)  # not UTF-8: read as cp1252, where 0xff is 'ÿ'
+    p.write_bytes(HEADER.encode() + b"\n0,P1,0,0,EBX,\x00,um/m\n")
+    with pytest.raises(ValueError, match=r":2: the file contains a NUL byte"):
         read_measurements(p)
 
 

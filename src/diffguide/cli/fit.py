@@ -41,16 +41,21 @@ def add_parser(sub) -> argparse.ArgumentParser:
     )
     p.add_argument("--preset", default="majda2012", choices=PRESETS,
                    help="machine model (majda2012: 1000 x 500 mm table, rails 340 mm apart)")
-    p.add_argument("--measurements", required=True, metavar="FILE.csv",
-                   help="measurement CSV (see above)")
+    p.add_argument("--measurements", required=True, action="append", metavar="FILE.csv",
+                   help="measurement file (see above); repeat it for several files, merged into "
+                   "one data set (each reading keeps its file; a point at two places or a "
+                   "channel at two heights is refused naming both files)")
     p.add_argument("--measurements-format", dest="layout", choices=("auto", "long", "wide"),
                    default="auto",
                    help="layout of --measurements: long (one reading per row), wide (targets x "
                    "runs, ISO 230-2 style) or auto (detected; see 'diffguide import')")
-    p.add_argument("--x0-mm", type=float, default=None,
-                   help="machine coordinate (mm) of the table position x = 0, subtracted from "
-                   "the file's positions and from the compensation table's; default: 0 for the "
-                   "long layout, the middle of the measured targets for the wide one")
+    from .import_ import add_input_options
+
+    add_input_options(p, " of all the files")
+    p.add_argument("--machine-x0-mm", type=float, default=None,
+                   help="machine coordinate (mm) of the table position x = 0 in the "
+                   "compensation table (--export-compensation): X = x + machine x0; default: "
+                   "the measurements' x0 (the table in the coordinates of the file)")
     p.add_argument("--allow-many-positions", action="store_true",
                    help="merge a file with more than 1000 distinct table positions (refused "
                    "otherwise: thousands, nearly one per reading, is what swapped position and "
@@ -106,8 +111,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "--preset")
     p.add_argument("--export-compensation", metavar="FILE",
                    help="write a compensation table predicted by the fitted model for the point "
-                   "--at over the stroke, in machine coordinates (X = x + --x0-mm), with σ (a "
-                   "column, or FILE's companion .sigma.csv); see --format")
+                   "--at over the stroke, in machine coordinates (X = x + --machine-x0-mm), "
+                   "with σ (a column, or FILE's companion .sigma.csv); see --format")
     p.add_argument("--format", dest="comp_format", default="csv",
                    choices=("csv", "isg", "siemens-cec", "heidenhain", "fanuc"),
                    help="format of --export-compensation: csv (errors and σ, µm/µrad), isg "
@@ -150,8 +155,11 @@ def _check_inputs(meas, args, cfg):
     bad = np.abs(meas.position) > stroke / 2 + 1e-9
     if bad.any():
         x = meas.position[bad][0]
+        x0 = getattr(args, "input_info", {}).get("x0_mm", 0.0)
         raise ValueError(f"{meas.source}: position {x * 1e3:g} mm is outside the {name} "
-                         f"stroke (±{stroke / 2 * 1e3:g} mm)")
+                         f"stroke (±{stroke / 2 * 1e3:g} mm; x = X − x0 with x0 = {x0:g} mm: "
+                         "for positions in machine coordinates give --x0-mm, the machine "
+                         "coordinate of mid-stroke, or --x0-mm middle)")
     if len(np.unique(np.round(meas.position, 9))) < 4:
         raise ValueError(f"{meas.source}: at least 4 distinct positions are needed for a fit")
     if args.knot_spacing_mm is not None and not (1.0 <= args.knot_spacing_mm <= 1000.0):
@@ -306,7 +314,7 @@ def run(args) -> int:
     report, written = _write_outputs(args, meas, fits, profiles, s_m, truth, seconds,
                                      family.base, t_start, cfg=cfg, info=info)
     if args.export_compensation:
-        _export_compensation(args, cfg, spec, points, elastic, info.get("x0_mm", 0.0))
+        _export_compensation(args, cfg, spec, points, elastic, _machine_x0(args, info))
     _say_results(args, report, fits, written, t_start)
     _warn_validity(args, report, meas, cfg)
     return 0 if elastic.converged else EXIT_NOT_CONVERGED
@@ -329,16 +337,22 @@ def _warn_validity(args, report, meas, cfg) -> None:
 def _read(args, cfg, info: dict):
     """The measurements (checked against the machine) and the structural priors."""
     from ..io.importers import read_any
+    from .import_ import load_profile_args
 
     notes: list[str] = []
     meas = read_any(args.measurements, args.layout, args.x0_mm, notes, info,
-                    allow_many_positions=args.allow_many_positions)
+                    allow_many_positions=args.allow_many_positions,
+                    profile=load_profile_args(args, args.measurements), encoding=args.encoding)
+    args.input_info = info
+    if args.machine_x0_mm is not None and not args.export_compensation:
+        notes.append("--machine-x0-mm places the compensation table: without "
+                     "--export-compensation it is only stated in report.json")
     for n in notes:
         say(args, f"note: {n}")
     _check_inputs(meas, args, cfg)
     priors = structure_priors(args, cfg)
     lines = ", ".join(map(str, meas.rejected[:10])) + (" ..." if len(meas.rejected) > 10 else "")
-    say(args, f"{args.measurements}: {len(meas.readings)} readings -> {meas.n} merged rows in "
+    say(args, f"{meas.source}: {len(meas.readings)} readings -> {meas.n} merged rows in "
                f"{len(meas.channels)} channels at {len(np.unique(meas.position))} positions"
                + (f"; {len(meas.rejected)} outlying readings set aside (lines {lines})"
                   if meas.rejected else ""))
@@ -400,8 +414,9 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
             report = fit_report(
                 meas, fits, profiles, seconds, machine, truth=truth, truth_file=args.truth,
                 source={"preset": None if args.config else args.preset, "config": args.config,
-                        "measurements": args.measurements},
+                        "measurements": ", ".join(args.measurements)},
                 exit_code=0 if elastic.converged else EXIT_NOT_CONVERGED)
+            report["measurements"].update(_coordinates(args))
             report.update(_report.sections(args, report, meas, elastic, s_m, cfg, info))
             report_figures = None if args.no_plots else _report.submit_figures(
                 figures, staged.tmp, _report.figure_jobs(report, meas, elastic, s_m))
@@ -450,6 +465,25 @@ def _say_results(args, report, fits, written, t_start) -> None:
     sys.stdout.flush()
 
 
+def _machine_x0(args, info) -> float:
+    """The export's x0: ``--machine-x0-mm``, else the measurements' (the first file's)."""
+    return args.machine_x0_mm if args.machine_x0_mm is not None else info.get("x0_mm", 0.0)
+
+
+def _coordinates(args) -> dict:
+    """report.json's statement of the coordinates: every file's x0 and its source, and the
+    compensation table's (``args.input_info``, set by :func:`_read`)."""
+    info = getattr(args, "input_info", {})
+    return {"files": [{"file": i["file"], "layout": i.get("layout"),
+                       "encoding": i.get("encoding"), "x0_mm": i.get("x0_mm"),
+                       "x0_source": i.get("x0_source"), "metadata": i.get("metadata", {})}
+                      for i in info.get("files", [])],
+            "x0_mm": info.get("x0_mm"), "machine_x0_mm": _machine_x0(args, info),
+            "coordinates": "x = X - x0: X the file's position (machine coordinate), x the table "
+                           "position (0 mid-stroke); the compensation table is written at "
+                           "X = x + machine_x0_mm"}
+
+
 def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> None:
     """``--export-compensation``: the fitted model's errors at ``--at`` over the stroke in
     ``--format`` (:func:`diffguide.studies.compensation.fitted_compensation`), written next
@@ -463,7 +497,8 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
     half = cfg["machine"]["stroke_mm"] / 2
     files, warnings = fitted_compensation(
         machine, fit, np.linspace(-half, half, args.comp_points), args.at, _export_spec(args),
-        x0_mm=x0_mm, source=f"predicted by the elastic model fitted to {args.measurements}",
+        x0_mm=x0_mm,
+        source=f"predicted by the elastic model fitted to {', '.join(args.measurements)}",
         tol_um=args.tol_um, tol_urad=args.tol_urad)
     base = Path(args.export_compensation)
     for suffix, text in files.items():

@@ -1,66 +1,186 @@
-"""``diffguide import``: a measurement file in any supported layout -> the canonical long CSV."""
+"""``diffguide import``: measurement files in any supported layout, or read through a profile,
+-> one canonical long CSV (``--explain``: what was read, and how)."""
 
 import argparse
 import sys
 
 
+def x0_value(text: str):
+    """``--x0-mm``'s value: a number (mm) or ``middle``."""
+    if text.strip().lower() == "middle":
+        return "middle"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a number (mm) or 'middle', got {text!r}") from None
+
+
+def profile_sets(items) -> dict:
+    """``--profile-set KEY=VALUE`` pairs as ``{key: value}`` (numbers read as numbers)."""
+    out = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"--profile-set {item!r}: expected KEY=VALUE (a [reading] key of "
+                             "the profile, e.g. point=P5)")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            out[key.strip()] = value.strip()
+    return out
+
+
+def add_input_options(p, several: str) -> None:
+    """The options that say how measurement files are read (import and fit share them)."""
+    p.add_argument("--profile", metavar="NAME|FILE.toml", action="append", default=None,
+                   help="read the file(s) through a profile: a built-in one ("
+                   "exx, iso230-2-summary, 6dof, long, wide) or a TOML file mapping a vendor's "
+                   "table onto the readings (README 'File formats', docs/file-formats.md); "
+                   "once for every file, or once per file in their order ('auto': that file "
+                   "in a canonical layout); default: the canonical long/wide layouts, detected")
+    p.add_argument("--profile-set", metavar="KEY=VALUE", action="append", default=None,
+                   help="set a [reading] key of the profile (repeatable), e.g. point=P5, "
+                   "x_mm=0, sign=-1")
+    p.add_argument("--encoding", default=None, metavar="NAME",
+                   help="text encoding of the file(s): utf-8, utf-16, cp1252, latin-1 or any "
+                   "Python codec name; default: the profile's, else detected (byte-order mark, "
+                   "UTF-16's NUL bytes, UTF-8, else cp1252)")
+    p.add_argument("--x0-mm", type=x0_value, default=None, metavar="MM|middle",
+                   help="machine coordinate (mm) of the table position x = 0 (the model's "
+                   "reference, mid-stroke) in the measurement file(s): x = position - x0; "
+                   "'middle': the middle of the measured targets" + several + "; default: the "
+                   "file's own statement (a wide file's x0_mm line, a profile's x0_mm), else 0 "
+                   "in every layout")
+
+
 def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "import",
-        help="convert a measurement file (long or wide layout, any separator, decimal comma) "
-        "into the canonical long CSV that 'diffguide fit' reads",
-        description="Read a measurement file - the long layout (one reading per row) or the wide "
-        "'targets x runs' layout (ISO 230-2 style: metadata lines point, x_mm, y_mm, quantity, "
-        "unit[, instrument, sigma, z_mm], then target_mm;run1_fwd;run1_bwd;...) - with ',', ';' "
-        "or tab separators and decimal commas, units µm, mm, nm, in, µm/m, mm/m, µrad, mrad, "
-        "arcsec, arcmin, deg, differential level pairs (a 'reference' column or run<k>_<dir>_ref "
-        "columns: measuring minus reference), and write the canonical long CSV "
-        "(position_mm,point,x_mm,y_mm,quantity,value,unit,sigma,run,direction,instrument,z_mm; "
-        "µm and µm/m; position_mm = machine position - x0). Extra columns are ignored with a "
-        "note. See README 'File formats'.",
+        help="convert measurement files (long or wide layout, or any table through a profile; "
+        "several files merge into one data set) into the canonical long CSV that 'diffguide "
+        "fit' reads; --explain shows what was read",
+        description="Read measurement files - the long layout (one reading per row), the wide "
+        "'targets x runs' layout (metadata lines point, x_mm, y_mm, quantity, unit[, "
+        "instrument, sigma, z_mm, x0_mm], then target_mm;run1_fwd;run1_bwd;...), or any "
+        "vendor table through a profile (--profile: built-in exx, iso230-2-summary, 6dof, "
+        "long, wide, or a TOML file) - in UTF-8, UTF-16 or cp1252, with ',', ';', tab or "
+        "whitespace separators and decimal commas, units µm, mm, nm, in, µin, µm/m, mm/m, "
+        "µrad, mrad, rad, arcsec, arcmin, deg, differential level pairs, and write the "
+        "canonical long CSV (µm and µm/m; position_mm = machine position - x0). Several files "
+        "are one data set (a point at two places, or a channel at two heights, is refused "
+        "naming both files). Extra columns are ignored with a note. See README 'File formats'.",
     )
-    p.add_argument("input", metavar="FILE", help="measurement file")
-    p.add_argument(
-        "--format",
-        dest="layout",
-        choices=("auto", "long", "wide"),
-        default="auto",
-        help="layout of FILE (default: detected from its first line)",
-    )
-    p.add_argument(
-        "--x0-mm",
-        type=float,
-        default=None,
-        help="machine coordinate (mm) of the table position x = 0 (the model's "
-        "reference, the middle of the stroke); default: 0 for the long layout (its "
-        "position_mm is x already), the middle of the measured targets for the wide one",
-    )
+    p.add_argument("input", metavar="FILE", nargs="+", help="measurement file(s)")
+    p.add_argument("--format", dest="layout", choices=("auto", "long", "wide"), default="auto",
+                   help="layout of FILE without --profile (default: detected from its first "
+                   "line)")
+    add_input_options(p, " of all the files")
     p.add_argument("--allow-many-positions", action="store_true",
                    help="merge a file with more than 1000 distinct table positions (refused "
                    "otherwise: thousands, nearly one per reading, is what swapped position and "
                    "value columns look like)")
-    p.add_argument("--out", required=True, metavar="FILE.csv", help="canonical long CSV to write")
+    p.add_argument("--explain", action="store_true",
+                   help="print what was read and how: layout or profile, encoding, separator, "
+                   "decimal mark, columns -> quantities and units, metadata, x0, rows read and "
+                   "lines skipped (--out is then optional)")
+    p.add_argument("--out", metavar="FILE.csv", default=None, help="canonical long CSV to write")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
     return p
 
 
+def load_profile_args(args, files):
+    """The profile of each file in ``files`` (``--profile``, once or once per file, with
+    ``--profile-set`` applied; ``None``: a canonical layout)."""
+    from ..io.profiles import check_profile, load_profile
+
+    names = args.profile or []
+    if not names:
+        if args.profile_set:
+            raise ValueError("--profile-set needs --profile")
+        return [None] * len(files)
+    if len(names) not in (1, len(files)):
+        raise ValueError(f"{len(names)} --profile options for {len(files)} files (allowed: one "
+                         "for every file, or one per file in their order)")
+    sets = profile_sets(args.profile_set)
+    loaded = {}
+    for name in dict.fromkeys(names):
+        if name == "auto":
+            loaded[name] = None
+            continue
+        prof = load_profile(name)
+        if sets:
+            prof.setdefault("reading", {}).update(sets)
+            check_profile(prof, f"{prof['_source']} with --profile-set")
+        loaded[name] = prof
+    return [loaded[n] for n in (names * len(files) if len(names) == 1 else names)]
+
+
+def explain_lines(infos) -> list[str]:
+    """``--explain``'s lines, one block per file."""
+    out = []
+    for info in infos:
+        out.append(f"{info['file']}:")
+        out.append(f"  layout: {info.get('layout')}; encoding: {info.get('encoding')}; "
+                   f"separator: {info.get('separator')!r}; decimal mark: "
+                   f"{info.get('decimal')!r}")
+        if info.get("metadata"):
+            out.append("  metadata: " + "; ".join(f"{k} = {v}" for k, v in
+                                                  info["metadata"].items()))
+        if info.get("header"):
+            out.append(f"  header (line {info['header_line']}): {', '.join(info['header'])}")
+        for block in info.get("blocks", []):
+            out.append(f"  block {block}")
+        if info.get("position_column"):
+            out.append(f"  positions: column {info['position_column']!r}")
+        for col, what in info.get("columns", {}).items():
+            shown = ", ".join(what[:4]) + (f" (+{len(what) - 4} more)" if len(what) > 4 else "")
+            out.append(f"  column {col!r} -> {shown}")
+        if info.get("channels"):
+            out.append(f"  channels: {', '.join(info['channels'])}")
+        out.append(f"  x0 = {info['x0_mm']:g} mm ({info['x0_source']})")
+        read = [f"{info['readings']} readings" if "readings" in info else "",
+                f"{info['rows']} table rows" if "rows" in info else "",
+                f"{info['missing_cells']} empty cells (missing readings)"
+                if info.get("missing_cells") else "",
+                f"lines skipped: {', '.join(map(str, info['lines_skipped'][:10]))}"
+                if info.get("lines_skipped") else "",
+                f"sections skipped: {', '.join(info['blocks_skipped'][:6])}"
+                if info.get("blocks_skipped") else ""]
+        out.append("  " + "; ".join(r for r in read if r))
+    return out
+
+
 def run(args) -> int:
     from ..io.atomic import atomic_write_text
-    from ..io.importers import format_long, import_readings
+    from ..io.importers import format_long, import_many
     from ..io.measurements import merge_readings
 
+    if args.out is None and not args.explain:
+        raise ValueError("diffguide import: --out FILE.csv is required (or --explain)")
     notes: list[str] = []
-    readings = import_readings(args.input, args.layout, args.x0_mm, notes)
-    meas = merge_readings(readings, source=args.input, notes=notes,  # validates what fit sees
+    infos: list[dict] = []
+    readings = import_many(args.input, args.layout, args.x0_mm, notes, infos,
+                           profile=load_profile_args(args, args.input), encoding=args.encoding)
+    for info in infos:
+        mine = [r for r in readings if r.source == info["file"]]
+        info["readings"] = len(mine)
+        info["channels"] = sorted({f"{r.quantity} at {r.point} ({r.instrument})" for r in mine})
+    source = ", ".join(args.input)
+    meas = merge_readings(readings, source=source, notes=notes,  # validates what fit sees
                           allow_many_positions=args.allow_many_positions)
-    text = format_long(readings, comment=f"imported from {args.input} by diffguide import")
-    atomic_write_text(args.out, text)
+    if args.explain:
+        print("\n".join(explain_lines(infos)))
+    if args.out is not None:
+        x0 = "; ".join(f"{i['file']}: x0 = {i['x0_mm']:g} mm" for i in infos)
+        text = format_long(readings, comment=f"imported from {source} by diffguide import\n"
+                                             f"positions are table positions x ({x0})")
+        atomic_write_text(args.out, text)
     if not args.quiet:
         for n in notes:
             print(f"diffguide import: note: {n}", file=sys.stderr)
-        print(
-            f"wrote {args.out}: {len(readings)} readings ({meas.n} merged rows in "
-            f"{len(meas.channels)} channels)"
-        )
+        print(f"{'wrote ' + args.out if args.out else 'read'}: {len(readings)} readings from "
+              f"{len(args.input)} file(s) ({meas.n} merged rows in {len(meas.channels)} "
+              "channels)")
     return 0

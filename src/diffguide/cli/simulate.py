@@ -60,7 +60,7 @@ def add_parser(sub) -> None:
         "--export-compensation",
         metavar="FILE",
         help="also write a compensation table for --at in --format (machine coordinates X = x + "
-        "--x0-mm; docs: compensation-exports)",
+        "--machine-x0-mm; docs: compensation-exports)",
     )
     p.add_argument("--at", default="P5", help="the control point of the compensation table")
     p.add_argument(
@@ -80,11 +80,14 @@ def add_parser(sub) -> None:
         "tables): tool, workpiece or Y=workpiece,Z=tool (X carries the workpiece)",
     )
     p.add_argument(
+        "--machine-x0-mm",
         "--x0-mm",
+        dest="machine_x0_mm",
         type=float,
         default=0.0,
         help="machine coordinate (mm) of the table position x = 0 (mid-stroke): the "
-        "compensation table is written at X = x + x0",
+        "compensation table is written at X = x + x0 (--x0-mm: its former name; 'fit' keeps "
+        "--x0-mm for the measurements' x0)",
     )
     p.add_argument(
         "--tol-um",
@@ -225,7 +228,7 @@ def _compensation(args, name, je, errs, positions, say) -> None:
         positions * 1e3,
         np.asarray(je.errors)[:, j, :],
         None,
-        x0_mm=args.x0_mm,
+        x0_mm=args.machine_x0_mm,
         point=args.at,
         source=f"simulated, {name}, {what}",
         exx_includes_lead=False,  # a simulation: ideal drive, no lead error

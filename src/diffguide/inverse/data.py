@@ -43,6 +43,8 @@ class Reading:
     #: standard uncertainty of the rounding of the value as written (SI; ``q/√12``, ``q`` a unit
     #: of its last digit; a differential pair's two roundings in quadrature; 0: unknown)
     resolution: float = 0.0
+    #: the file it was read from (several files merged into one data set; "" when one)
+    source: str = ""
 
 
 @dataclasses.dataclass(frozen=True, repr=False)

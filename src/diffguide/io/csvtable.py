@@ -1,6 +1,8 @@
 """One set of rules for every CSV file diffguide reads (measurements, rails, truth profiles).
 
-- UTF-8 text (a byte-order mark is allowed), no NUL bytes;
+- text in UTF-8 (a byte-order mark is allowed), UTF-16 (with a byte-order mark, or told by the
+  NUL bytes of ASCII text) or cp1252/Latin-1 (what is not valid UTF-8), or in a stated
+  ``encoding`` (:func:`decode`); no NUL bytes in the decoded text;
 - blank lines and lines whose first non-blank character is ``#`` are skipped, anywhere;
 - the first other line is the header; column names are matched without case or surrounding
   spaces;
@@ -42,22 +44,73 @@ def decimal_point(field: str, delimiter: str) -> str:
     return field
 
 
-def read_text(path: str | os.PathLike) -> str:
-    """The UTF-8 text of a CSV file (size and encoding checked; one-line errors)."""
+#: Encodings :func:`decode` accepts by name besides ``"auto"`` (any Python codec name works).
+ENCODINGS = ("auto", "utf-8", "utf-8-sig", "utf-16", "utf-16-le", "utf-16-be", "cp1252",
+             "latin-1")
+
+
+def decode(data: bytes, name: str = "<bytes>", encoding: str = "auto") -> tuple[str, str]:
+    """``(text, encoding used)`` of a file's bytes.
+
+    ``"auto"``: a byte-order mark decides (UTF-8, UTF-16 LE/BE); without one, NUL bytes in
+    every second place of the first bytes mean UTF-16 (ASCII text written as UTF-16, LE or BE);
+    else UTF-8, and text that is not valid UTF-8 is read as cp1252 (Windows Western, a superset
+    of Latin-1's printable characters; its five undefined bytes as Latin-1). Any other value is
+    a Python codec name, used as stated (a UTF-8 byte-order mark is dropped)."""
+    if encoding != "auto":
+        try:
+            text = data.decode(encoding)
+        except LookupError:
+            raise ValueError(f"{name}: unknown encoding {encoding!r} (allowed "
+                             f"{', '.join(ENCODINGS)} or another Python codec name)") from None
+        except UnicodeDecodeError as exc:
+            line = data[: exc.start].count(b"\n") + 1
+            raise ValueError(f"{name}:{line}: not {encoding} text (byte {exc.start}; "
+                             "--encoding auto detects UTF-8, UTF-16 and cp1252)") from None
+        return text.removeprefix("\ufeff"), encoding
+    if data.startswith(b"\xef\xbb\xbf"):
+        used = "utf-8-sig"
+    elif data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        used = "utf-16"
+    elif len(data) >= 4 and data[1:64:2].count(0) > 0.9 * len(data[1:64:2]):
+        used = "utf-16-le"
+    elif len(data) >= 4 and data[0:64:2].count(0) > 0.9 * len(data[0:64:2]):
+        used = "utf-16-be"
+    else:
+        used = "utf-8"
+    try:
+        text = data.decode(used)
+    except UnicodeDecodeError as exc:
+        if used != "utf-8":
+            line = data[: exc.start].count(b"\n") + 1
+            raise ValueError(f"{name}:{line}: not {used} text (byte {exc.start})") from None
+        try:
+            used, text = "cp1252", data.decode("cp1252")
+        except UnicodeDecodeError:  # one of cp1252's five undefined bytes: Latin-1 has them all
+            used, text = "latin-1", data.decode("latin-1")
+    return text.removeprefix("\ufeff"), used
+
+
+def read_bytes(path: str | os.PathLike) -> bytes:
+    """The bytes of a file (size checked; one-line errors)."""
     name = os.fspath(path)
     try:
         size = os.path.getsize(name)
         if size > _MAX_BYTES:
             raise ValueError(f"{name}: file too large ({size} bytes > {_MAX_BYTES})")
         with open(name, "rb") as fh:
-            data = fh.read()
+            return fh.read()
     except OSError as exc:
         raise ValueError(f"{name}: cannot read the file: {exc.strerror or exc}") from None
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data[: exc.start].count(b"\n") + 1
-        raise ValueError(f"{name}:{line}: not UTF-8 text (byte {exc.start})") from None
+
+
+def read_text(path: str | os.PathLike, encoding: str = "auto", info: dict | None = None) -> str:
+    """The text of a CSV file (size checked; encoding as :func:`decode`; one-line errors).
+    ``info`` (a dict) receives ``encoding``, the encoding used."""
+    name = os.fspath(path)
+    text, used = decode(read_bytes(path), name, encoding)
+    if info is not None:
+        info["encoding"] = used
     if "\x00" in text:
         line = text[: text.index("\x00")].count("\n") + 1
         raise ValueError(f"{name}:{line}: the file contains a NUL byte (not a CSV text file)")

@@ -35,10 +35,16 @@ quantity, one instrument)::
   an error). Other columns (temperature, ...) are ignored with a note.
 - one row per target position; an empty cell is a missing reading; a target repeated in a
   block is merged as further readings, with a note.
-- ``target_mm`` is in **machine coordinates**: the table position is ``x = target − x0`` with
-  ``x0`` the ``--x0-mm`` option, by default the middle of the measured targets (so the middle of
-  the measured range is x = 0, the model's reference position). In the long layout
-  ``position_mm`` already *is* x (x0 = 0 unless given).
+- a metadata line ``x0_mm;VALUE`` (anywhere, once per file) states the machine coordinate of
+  the table position x = 0 (see below).
+
+**x0, every layout alike**: a file's positions (``position_mm``, ``target_mm``, a profile's
+position column) are machine coordinates ``X``; the table position is ``x = X − x0`` (x = 0 is
+the model's reference position, the middle of the stroke). ``x0`` is the ``--x0-mm`` option
+(a number, or ``middle``: the middle of the measured targets), else the file's own statement
+(a wide file's ``x0_mm`` line, a profile's ``x0_mm``), else **0** (the positions are x already,
+as in a file written by ``diffguide import``). The x0 used and where it came from are in
+``info`` (and ``report.json``).
 
 Both layouts: separator ``,``, ``;`` or tab (sniffed from the first table line), a decimal comma
 is read when the separator is not ``,``; values, units and directions as in the long format
@@ -72,7 +78,7 @@ from .measurements import (
 
 LAYOUTS = ("auto", "long", "wide")
 WIDE_REQUIRED = ("point", "x_mm", "y_mm", "quantity", "unit")
-WIDE_OPTIONAL = ("instrument", "sigma", "z_mm", "resolution")
+WIDE_OPTIONAL = ("instrument", "sigma", "z_mm", "resolution", "x0_mm")
 WIDE_TARGET = ("target_mm", "position_mm")
 _RUN_COLUMN = re.compile(
     r"^run\s*_?\s*(?P<run>[0-9a-z]+?)(?:[_ ]?(?P<dir>forward|backward|positive|negative|fwd|bwd|"
@@ -153,7 +159,7 @@ def parse_wide(
 ) -> tuple[Reading, ...]:
     """Validated readings of a wide file (module docstring); ``x0_mm`` ``None``: the middle of
     the measured targets."""
-    readings, meta, meta_line = [], {}, {}
+    readings, meta, meta_line, stated = [], {}, {}, None
     table = None  # (columns, lookup, header, header line) while inside a table
     delimiter = None
     for number, line in _content_lines(text):
@@ -170,6 +176,9 @@ def parse_wide(
                     f"{name}:{number}: metadata line {key!r} needs one value "
                     f"('{key}{delimiter}VALUE')"
                 )
+            if key == "x0_mm":  # the file's, not the block's
+                stated = _stated_x0(values[0], stated, name, number)
+                continue
             meta[key], meta_line[key] = values[0], number
             continue
         if key in WIDE_TARGET:
@@ -183,6 +192,11 @@ def parse_wide(
                 )
             cols, lookup = _wide_columns(fields, name, number, notes)
             table = (cols, lookup, fields, number)
+            if info is not None:
+                info.setdefault("blocks", []).append(
+                    f"line {number}: {meta['quantity']} [{meta['unit']}] at {meta['point']}"
+                    f" ({meta.get('instrument', 'default instrument')}), "
+                    f"{len([c for c in cols.values() if not c[2]])} run columns")
             continue
         if table is None:
             raise ValueError(
@@ -234,62 +248,205 @@ def parse_wide(
     if not readings:
         raise ValueError(f"{name}:1: no readings in the wide file: {_EXPECTED}")
     note_repeats(readings, name, notes)
-    if x0_mm is None:
+    return shift_x0(readings, x0_mm, stated, name, notes, info)
+
+
+def _stated_x0(raw, stated, name, number):
+    try:
+        value = float(raw)
+    except ValueError:
+        raise ValueError(f"{name}:{number}: metadata line 'x0_mm': not a number, got {raw!r} "
+                         "(allowed the machine coordinate of x = 0 in mm)") from None
+    if stated is not None and stated[0] != value:
+        raise ValueError(f"{name}:{number}: metadata line 'x0_mm' = {value:g} mm, but line "
+                         f"{stated[1]} says {stated[0]:g} mm (allowed: one x0 per file)")
+    return value, number
+
+
+def shift_x0(readings, x0_mm, stated, name: str, notes: list | None, info: dict | None):
+    """``readings`` with ``x = X − x0`` (module docstring: x0 is ``x0_mm`` when given — a
+    number or ``"middle"`` — else the file's ``stated`` ``(x0, line)``, else 0); ``info``
+    receives ``x0_mm`` and ``x0_source``."""
+    if x0_mm is None and stated is not None:
+        x0_mm, source = stated[0], f"{name}:{stated[1]}" if stated[1] else "the profile"
+    elif x0_mm is None:
+        x0_mm, source = 0.0, "default (the positions are table positions x)"
+    elif x0_mm == "middle":
         pos = [r.position for r in readings]
-        x0_mm = (min(pos) + max(pos)) / 2 * 1e3
-        if notes is not None:
-            notes.append(
-                f"{name}: targets shifted by x0 = {x0_mm:g} mm (the middle of the "
-                "measured range; --x0-mm sets it)"
-            )
+        x0_mm, source = (min(pos) + max(pos)) / 2 * 1e3, "middle of the measured targets"
+    else:
+        x0_mm, source = float(x0_mm), "--x0-mm"
+        if stated is not None and stated[0] != x0_mm and notes is not None:
+            notes.append(f"{name}: x0 = {x0_mm:g} mm (--x0-mm) replaces the file's "
+                         f"{stated[0]:g} mm")
+    if x0_mm and notes is not None:
+        notes.append(f"{name}: positions shifted by x0 = {x0_mm:g} mm ({source})")
     if info is not None:
-        info["x0_mm"] = x0_mm
+        info["x0_mm"], info["x0_source"] = x0_mm, source
     x0 = x0_mm * 1e-3
-    return tuple(dataclasses.replace(r, position=r.position - x0) for r in readings)
+    return tuple(dataclasses.replace(r, position=r.position - x0, source=name)
+                 for r in readings)
 
 
 def import_readings(
     path: str | os.PathLike,
     layout: str = "auto",
-    x0_mm: float | None = None,
+    x0_mm: float | str | None = None,
     notes: list | None = None,
     info: dict | None = None,
+    *,
+    profile: str | dict | None = None,
+    encoding: str | None = None,
 ) -> tuple[Reading, ...]:
-    """Readings of a measurement file in any supported layout (module docstring). ``info``
-    (a dict) receives ``layout`` and ``x0_mm``, the machine coordinate of x = 0 used."""
+    """Readings of a measurement file in any supported layout (module docstring), or read
+    through a ``profile`` (:mod:`diffguide.io.profiles`: a path, a built-in name or a loaded
+    profile). ``x0_mm``: a number (mm), ``"middle"`` or ``None`` (the file's own x0, else 0).
+    ``encoding``: ``None``/``"auto"`` (detected) or a codec name. ``info`` (a dict) receives
+    what was used: ``layout``, ``encoding``, ``x0_mm``, ``x0_source`` and, per layout, the
+    separator, decimal mark, columns, metadata, rows read and lines skipped."""
+    from .profiles import load_profile, parse_profile
+
     name = os.fspath(path)
-    text = read_text(path)
+    info = {} if info is None else info
+    prof = load_profile(profile) if isinstance(profile, str) else profile
+    wanted = encoding or (prof.get("encoding", "auto") if prof else "auto")
+    text = read_text(path, wanted, info)
+    if prof is not None:
+        if layout != "auto":
+            raise ValueError(f"{name}: layout {layout!r} and a profile both given (a profile "
+                             "says how the file is laid out: give one of them)")
+        readings = parse_profile(text, prof, name, notes, info)
+        x = prof.get("x0_mm")
+        stated = info.pop("x0_stated", None)
+        if x == "middle":
+            x0_mm = x if x0_mm is None else x0_mm
+        elif x is not None and stated is None:
+            stated = (float(x), 0)
+        info["layout"] = f"profile {prof['_source']}"
+        return shift_x0(readings, x0_mm, stated, name, notes, info)
     if layout not in LAYOUTS:
         raise ValueError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
     if layout == "auto":
         layout = detect_layout(text, name)
+    info["layout"] = layout
+    _explain_csv(text, name, layout, info)
     if layout == "wide":
-        readings = parse_wide(text, name, x0_mm, notes, info)
-    else:
-        readings = parse_readings(text, name, x0_mm=x0_mm or 0.0, notes=notes)
-        if info is not None:
-            info["x0_mm"] = x0_mm or 0.0
-    if info is not None:
-        info["layout"] = layout
-    return readings
+        return parse_wide(text, name, x0_mm, notes, info)
+    readings = parse_readings(text, name, notes=notes)
+    return shift_x0(readings, x0_mm, None, name, notes, info)
+
+
+def _explain_csv(text, name, layout, info) -> None:
+    """The separator, decimal mark and header of a canonical file, for ``--explain``."""
+    for number, line in _content_lines(text):
+        d = sniff_delimiter(line)
+        if layout == "wide" and split_line(line, d, name, number)[0].lower() not in WIDE_TARGET:
+            continue
+        info["separator"] = {"\t": "tab"}.get(d, d)
+        info["decimal"] = "," if d != "," else "."
+        info["header_line"] = number
+        info["header"] = split_line(line, d, name, number)
+        return
+
+
+def import_many(paths, layout: str = "auto", x0_mm=None, notes: list | None = None,
+                infos: list | None = None, *, profile=None, encoding=None):
+    """The readings of several files as one data set (:func:`import_readings` each; every
+    reading's ``source`` is its file). A point at different (x, y) in two files, or a channel
+    (point, quantity, instrument) at different heights ``z_mm``, is refused naming both files;
+    a run label that two files use for the same channel and direction is made distinct (the
+    second file's runs are other runs), with a note. ``x0_mm="middle"``: the middle of all
+    files' targets. ``profile``: one for every file, or a list, one per file (``None``: a
+    canonical layout)."""
+    paths = [os.fspath(p) for p in paths]
+    if not paths:
+        raise ValueError("no measurement file given")
+    dup = sorted({p for p in paths if paths.count(p) > 1})
+    if dup:
+        raise ValueError(f"{dup[0]}: the same measurement file is given twice (each file once)")
+    profiles = list(profile) if isinstance(profile, (list, tuple)) else [profile] * len(paths)
+    if len(profiles) != len(paths):
+        raise ValueError(f"{len(profiles)} profiles for {len(paths)} files (one per file)")
+    per_file = []
+    for path, prof in zip(paths, profiles):
+        info: dict = {"file": path}
+        rs = import_readings(path, layout, None if x0_mm == "middle" else x0_mm, notes, info,
+                             profile=prof, encoding=encoding)
+        per_file.append(rs)
+        if infos is not None:
+            infos.append(info)
+    if x0_mm == "middle":
+        pos = [r.position for rs in per_file for r in rs]
+        mid = (min(pos) + max(pos)) / 2
+        per_file = [tuple(dataclasses.replace(r, position=r.position - mid) for r in rs)
+                    for rs in per_file]
+        for info in infos or []:
+            info["x0_mm"] += mid * 1e3
+            info["x0_source"] = "middle of the measured targets (all files)"
+    return _join(per_file, notes)
+
+
+def _join(per_file, notes):
+    """The readings of several files, checked against each other (:func:`import_many`)."""
+    points, channels, runs, out = {}, {}, {}, []
+    for rs in per_file:
+        renamed = set()
+        for r in rs:
+            prev = points.setdefault(r.point, (r.xy, r.source, r.line))
+            if max(abs(a - b) for a, b in zip(prev[0], r.xy)) > 1e-9:
+                raise ValueError(
+                    f"{r.source}:{r.line}: point {r.point!r} is at ({r.xy[0] * 1e3:g}, "
+                    f"{r.xy[1] * 1e3:g}) mm here but at ({prev[0][0] * 1e3:g}, "
+                    f"{prev[0][1] * 1e3:g}) mm in {prev[1]}:{prev[2]} (allowed: one location "
+                    "per point name in all the files merged)")
+            ch = (r.point, r.quantity, r.instrument)
+            prev = channels.setdefault(ch, (r.z, r.source, r.line))
+            if abs(prev[0] - r.z) > 1e-9:
+                raise ValueError(
+                    f"{r.source}:{r.line}: {r.quantity} at {r.point} ({r.instrument}) is read "
+                    f"at z = {r.z * 1e3:g} mm here but at z = {prev[0] * 1e3:g} mm in "
+                    f"{prev[1]}:{prev[2]} (allowed: one sensing height per channel in all the "
+                    "files merged; name the points apart if the setups differ)")
+            key = (ch, r.run, r.direction)
+            first = runs.setdefault(key, r.source)
+            if first != r.source:
+                renamed.add(r.run)
+                r = dataclasses.replace(r, run=f"{r.run}@{os.path.basename(r.source)}")
+                runs.setdefault((ch, r.run, r.direction), r.source)
+            out.append(r)
+        if renamed and notes is not None:
+            notes.append(f"{rs[0].source}: run(s) {', '.join(sorted(renamed))} of a channel "
+                         "already read from an earlier file are other runs: relabelled "
+                         "RUN@FILE")
+    return tuple(out)
 
 
 def read_any(
-    path: str | os.PathLike,
+    path,
     layout: str = "auto",
-    x0_mm: float | None = None,
+    x0_mm: float | str | None = None,
     notes: list | None = None,
     info: dict | None = None,
     *,
     allow_many_positions: bool = False,
+    profile=None,
+    encoding: str | None = None,
 ):
-    """Read and merge a measurement file in any supported layout
+    """Read and merge one measurement file, or several (``path`` a list: one data set,
+    :func:`import_many`), in any supported layout or through a ``profile``
     (:class:`~diffguide.inverse.data.Measurements`, SI units; ``allow_many_positions``: see
-    :func:`~diffguide.inverse.merge.merge_readings`)."""
-    return merge_readings(
-        import_readings(path, layout, x0_mm, notes, info), source=os.fspath(path), notes=notes,
-        allow_many_positions=allow_many_positions,
-    )
+    :func:`~diffguide.inverse.merge.merge_readings`). ``info`` receives the first file's
+    :func:`import_readings` info and, under ``"files"``, every file's."""
+    paths = [path] if isinstance(path, (str, os.PathLike)) else list(path)
+    infos: list = []
+    readings = import_many(paths, layout, x0_mm, notes, infos, profile=profile,
+                           encoding=encoding)
+    if info is not None:
+        info.update(infos[0])
+        info["files"] = infos
+    source = ", ".join(os.fspath(p) for p in paths)
+    return merge_readings(readings, source=source, notes=notes,
+                          allow_many_positions=allow_many_positions)
 
 
 #: Units of the canonical file written by :func:`format_long`.
@@ -322,9 +479,11 @@ def format_long(readings, comment: str = "") -> str:
 
 
 def merged_table(meas) -> np.ndarray:
-    """``(n, 5)``: position (mm), point index, quantity index, value and σ (µm, µm/m) of merged
-    data, sorted — for comparing two files' merged data."""
+    """``(n, 5)``: position (mm), point (its rank among the names, sorted), quantity index,
+    value and σ (µm, µm/m) of merged data, sorted — for comparing two files' merged data."""
+    rank = np.argsort(np.argsort(np.array(meas.point_names)))
     a = np.column_stack(
-        [meas.position * 1e3, meas.point, meas.quantity, meas.value * 1e6, meas.sigma * 1e6]
+        [meas.position * 1e3, rank[meas.point], meas.quantity, meas.value * 1e6,
+         meas.sigma * 1e6]
     )
-    return a[np.lexsort(a[:, 2::-1].T)]
+    return a[np.lexsort((a[:, 2], a[:, 1], np.round(a[:, 0], 6)))]  # positions to 1 nm

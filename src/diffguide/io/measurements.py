@@ -11,10 +11,11 @@ comma is read; other layouts: :mod:`diffguide.io.importers`)::
 - ``position_mm``: table position ``x`` (mm). ``point``: the control point's name; ``x_mm``,
   ``y_mm``: where it is on the table top (mm, from the table centre; the same for every row of
   a point).
-- ``quantity``: ``EXX``, ``EYX``, ``EZX`` (``µm``/``um``, ``mm``, ``nm``, ``in``) or ``EAX``,
-  ``EBX``, ``ECX`` (``µm/m``/``um/m``, ``µrad``/``urad``, ``mrad``, ``mm/m``, ``arcsec``,
-  ``arcmin``, ``deg``; case and spaces do not matter). ``value`` and ``sigma`` (> 0,
-  the standard uncertainty of *one reading*) are in ``unit``; ``value`` (and ``reference``) within
+- ``quantity``: ``EXX``, ``EYX``, ``EZX`` (``µm``/``um``, ``mm``, ``nm``, ``in``, ``µin``/``uin``)
+  or ``EAX``, ``EBX``, ``ECX`` (``µm/m``/``um/m``, ``µrad``/``urad``, ``mrad``, ``rad``, ``mm/m``,
+  ``arcsec``/``arc-sec``/``"``, ``arcmin``, ``deg``; case and spaces do not matter).
+  ``value`` and ``sigma`` (> 0, the standard uncertainty of *one reading*) are in ``unit``;
+  ``value`` (and ``reference``) within
   ±10000 µm for a linear error, ±10000 µm/m (10 mrad) for an angle (:data:`VALUE_LIMIT`); a
   stated ``sigma`` must be > 0 and within the same limit.
 - ``run``: a label of the run (default: one run); rows that repeat the position, point,
@@ -76,17 +77,21 @@ from .csvtable import sniff_delimiter as sniff_delimiter
 from .csvtable import split_line as split_line
 
 #: unit -> factor to SI (m or rad)
-LINEAR_UNITS = {"µm": 1e-6, "um": 1e-6, "μm": 1e-6, "mm": 1e-3, "nm": 1e-9, "in": 0.0254}
+LINEAR_UNITS = {"µm": 1e-6, "um": 1e-6, "μm": 1e-6, "mm": 1e-3, "nm": 1e-9, "in": 0.0254,
+                "µin": 0.0254e-6, "uin": 0.0254e-6, "μin": 0.0254e-6}
 ANGULAR_UNITS = {
     "µm/m": 1e-6, "um/m": 1e-6, "μm/m": 1e-6, "µrad": 1e-6, "urad": 1e-6, "μrad": 1e-6,
     "mrad": 1e-3, "mm/m": 1e-3, "arcsec": math.pi / (180 * 3600),
-    "arcmin": math.pi / (180 * 60), "deg": math.pi / 180, "°": math.pi / 180,
+    "arcmin": math.pi / (180 * 60), "deg": math.pi / 180, "°": math.pi / 180, "rad": 1.0,
 }
 #: Other spellings of the units above (read case-insensitively, spaces removed).
 UNIT_SPELLINGS = {"µ": "µm", "micron": "µm", "microns": "µm", "mic": "µm", "inch": "in",
                   "µm/1m": "µm/m", "um/1m": "µm/m", "μm/1m": "µm/m", "micron/m": "µm/m",
                   "µradian": "µrad", "sec": "arcsec", '"': "arcsec", "min": "arcmin",
-                  "'": "arcmin", "degree": "deg", "degrees": "deg", "mm/1000mm": "mm/m"}
+                  "'": "arcmin", "degree": "deg", "degrees": "deg", "mm/1000mm": "mm/m",
+                  "arc-sec": "arcsec", "arcsecond": "arcsec", "arcseconds": "arcsec",
+                  "arc-min": "arcmin", "inches": "in", "microinch": "µin", "microinches": "µin",
+                  "µinch": "µin", "radian": "rad", "radians": "rad"}
 INSTRUMENTS = ("level", "interferometer")
 REQUIRED = ("position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit")
 OPTIONAL = ("sigma", "run", "direction", "instrument", "z_mm", "reference", "resolution")
