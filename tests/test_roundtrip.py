@@ -162,7 +162,7 @@ def _expected_layout(case) -> set:
     """What layout.csv must list for ``case``'s sensors, from the planner's kinds: a level; an
     interferometer's angular optics; its straightness optics; positioning left out."""
     out = set()
-    for name, x, y, inst, qs in case.sensors:
+    for _name, x, y, inst, qs in case.sensors:
         for q in qs:
             kind = ("level" if inst == "level" else "interferometer" if q in ("EBX", "ECX",
                     "EAX") else "straightness" if q in ("EYX", "EZX") else None)
