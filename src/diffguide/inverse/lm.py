@@ -64,16 +64,16 @@ def levenberg_marquardt(x, r, J, pred, Jc, linearise, P, rtol, max_steps):
     linearisation promises more than the model holds, its weak directions within the Jacobian's
     round-off: steps realise a small fraction of it at any damping, and without this rule LM
     crawls to its step limit). The two stalled-rule thresholds are :data:`_STALL_GAIN` and
-    :data:`_STALL_DECREMENT` times ``rtol·ŝ²``. ``ŝ²`` is the objective per
-    datum at the start (≈ 1 when the stated σ are right; with σ all stated 10⁹× too large it is
+    :data:`_STALL_DECREMENT` times ``rtol·ŝ²``. ``ŝ²`` is the objective per datum at the
+    current point (≈ 1 when the stated σ are right; with σ all stated 10⁹× too large it is
     10⁻¹⁸, and the rule stays the same rule), floored at :data:`_SCALE_FLOOR` (data that are
     zero to round-off stop at once).
     Returns ``(x, r, J, pred, Jc, converged, steps, reason)``.
     """
     cost = float(r @ r + x @ P @ x)
-    tol = rtol * max(cost / max(len(r), 1), _SCALE_FLOOR)
     mu, nu, stalled = 0.0, 2.0, 0
     for step in range(1, max_steps + 1):
+        tol = rtol * max(cost / max(len(r), 1), _SCALE_FLOOR)
         H = spd(J.T @ J + P)
         g = J.T @ r + P @ x
         decrement = _gn_decrement(H, g)
