@@ -166,12 +166,14 @@ def solve_lm(st: FitState, rtol: float, max_steps: int, reject_outliers: bool) -
 def _lm_pass(st: FitState, linearise_c, rtol, max_steps, passes) -> None:
     ic = st.problem.ic
     r, J, pred, _, Jc = st.lin
+    x0 = st.x[ic].copy()
     xc, r, _, pred, Jc, converged, n, message = levenberg_marquardt(
-        st.x[ic], r, J[:, ic], pred, Jc, linearise_c, st.Pc, rtol, max_steps)
+        x0, r, J[:, ic], pred, Jc, linearise_c, st.Pc, rtol, max_steps)
     st.x[ic] = xc
     st.steps += n
     st.converged, st.message = converged, message
-    st.lin = linearise_c.at(st.x)
+    if not np.array_equal(xc, x0):  # else st.lin, taken at st.x, still holds
+        st.lin = linearise_c.at(st.x)
     r = st.lin[0]
     _log.info("fit: pass %d, %d LM steps, chi2 %.4g, lambda %.3g (kappa %g): %s", passes, n,
               float(r @ r), st.choice.lam, st.choice.kappa, message)
