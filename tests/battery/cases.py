@@ -380,11 +380,14 @@ CORNERS_RICH: tuple[Sensor, ...] = tuple(
 
 
 def rich_data() -> Case:
-    """A rich data set: 16 channels (a level and an interferometer at each corner), 71
-    positions, the rich truth (90–900 mm content): LM and the structure on much data."""
+    """16 channels (a level and an interferometer at each corner) on the rich truth, 71 positions.
+
+    The issue-28 data set: much data on rails with content from 90 to 900 mm (preload truth
+    8 %), where Levenberg–Marquardt had stopped on its step limit and the preload came back
+    2.7σ off.
+    """
     return dataclasses.replace(rich_truth(), name="rich_data",
-                               stresses=rich_data.__doc__.strip().splitlines()[0]
-                               + " " + rich_data.__doc__.strip().splitlines()[1].strip(),
+                               stresses=rich_data.__doc__.strip().splitlines()[0],
                                sensors=CORNERS_RICH, seed=1818)
 
 
