@@ -214,6 +214,15 @@ def test_case_returns_a_fit(name):
     assert np.all(np.isfinite(res.score.rms_um)) and np.isfinite(res.fit.chi2_dof)
 
 
+@pytest.mark.parametrize("name", list(CASES))
+def test_case_converges_with_default_settings(name):
+    """No case ends "not converged" with the fit's defaults (issue 28: the rich data set
+    stopped after 60 Levenberg–Marquardt steps)."""
+    res = result(name)
+    assert res.fit is not None, res.error
+    assert res.fit.converged, res.fit.message
+
+
 @pytest.mark.parametrize("name", _params("coverage", CASES))
 def test_truth_inside_2_sigma(name):
     res = result(name)

@@ -441,7 +441,7 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
 def _say_results(args, report, fits, written, t_start) -> None:
     """The console's closing lines: truth scores, what the data do not determine (and the
     planner's command for it), the files, a warning when the fit did not converge."""
-    from ..io.fit_report import undetermined_lines
+    from ..io.fit_report import misfit_lines, undetermined_lines
 
     elastic = fits[""]
     if args.truth:
@@ -449,6 +449,8 @@ def _say_results(args, report, fits, written, t_start) -> None:
         say(args, "profile rms error vs truth: elastic {:.3f} µm".format(e["elastic"]["all"])
              + (", rigid table {:.3f} µm".format(e["rigid_table"]["all"]) if "_rigid" in fits
                 else ""))
+    for line in misfit_lines(report):  # the likely cause of a chi2/dof far above 1
+        say(args, line)
     blind = undetermined_lines(report["identifiability"], elastic.waviness)
     for line in blind:
         say(args, line)

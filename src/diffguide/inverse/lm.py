@@ -1,10 +1,36 @@
 r"""Levenberg–Marquardt on a regularised least-squares objective ``‖r(x)‖² + xᵀPx``, one
-linearisation per step, the damped normal equations solved in NumPy."""
+linearisation per step, the damped normal equations solved in NumPy.
+
+The damping follows Nielsen's gain-ratio rule (Madsen, Nielsen & Tingleff, *Methods for
+non-linear least squares problems*, 2004, §3.2): with ``ρ`` the actual over the predicted
+decrease of a step, an accepted step scales μ by ``max(1/3, 1 − (2ρ − 1)³)`` (μ falls where the
+quadratic model holds, stays where it barely holds), a rejected one by ``ν`` (doubling ``ν``).
+Marquardt's diagonal scaling ``D = diag(H)`` makes μ relative.
+"""
+
+import logging
 
 import numpy as np
 
+_log = logging.getLogger("diffguide.lm")
 #: Floor of the noise scale ``ŝ²`` (objective per datum) in Levenberg–Marquardt's stop rule.
 _SCALE_FLOOR = 1e-24
+#: The first damping after a rejected Gauss–Newton step (relative to ``diag H``).
+_MU_FIRST = 1e-3
+#: Below this damping the step is taken as Gauss–Newton's (μ = 0).
+_MU_MIN = 1e-9
+#: Above this damping the objective cannot be decreased along any direction: stop.
+_MU_MAX = 1e12
+#: A trial point counts as no worse when its objective exceeds the current one by at most this
+#: fraction (the model's equilibria are solved to a tolerance: its round-off).
+_COST_RTOL = 1e-12
+#: Consecutive accepted steps, each gaining less than ``_STALL_GAIN·rtol·ŝ²``, that end the
+#: search when the Gauss–Newton decrement is below ``_STALL_DECREMENT·rtol·ŝ²`` (with the
+#: default ``rtol`` = 1e-6: steps gaining < 1e-4 ŝ² while the linearisation promises < 0.03 ŝ²,
+#: i.e. the quadratic model's optimum within 0.17 posterior σ in every direction).
+_STALL_STEPS = 3
+_STALL_GAIN = 1e2
+_STALL_DECREMENT = 3e4
 
 
 def spd(H):
@@ -13,45 +39,71 @@ def spd(H):
     return H
 
 
+def _gn_decrement(H, g) -> float:
+    """``−gᵀH⁻¹g``'s magnitude: the objective a full Gauss–Newton step would still gain (twice
+    the quadratic model's decrease is ``gᵀH⁻¹g``); ``inf`` where ``H`` is singular."""
+    try:
+        return float(g @ np.linalg.solve(H, g))
+    except np.linalg.LinAlgError:
+        return np.inf
+
+
 def levenberg_marquardt(x, r, J, pred, Jc, linearise, P, rtol, max_steps):
     """Minimise ``‖r(x)‖² + xᵀPx`` from ``x`` (with ``r``, ``J`` there) by Levenberg–Marquardt
-    with Marquardt's diagonal scaling; one compiled linearisation per step (the model is nearly
-    linear in µm-sized rail errors, so the Gauss–Newton step, μ = 0, is tried first).
-    ``linearise(x)`` returns ``(r, J, pred, ok, Jc)`` (``pred`` and ``Jc`` are carried along).
+    with Marquardt's diagonal scaling and Nielsen's damping rule (module docstring); one
+    compiled linearisation per step (the model is nearly linear in µm-sized rail errors, so the
+    Gauss–Newton step, μ = 0, is tried first). ``linearise(x)`` returns ``(r, J, pred, ok,
+    Jc)`` (``pred`` and ``Jc`` are carried along).
 
-    Stops when the Gauss–Newton decrement ``δᵀHδ`` (the χ² a full step would still gain) is below
-    ``rtol·ŝ²`` — a change of the objective far below the noise scale means nothing
-    statistically. ``ŝ²`` is the objective per datum at the start (≈ 1 when the stated σ are
-    right; with σ all stated 10⁹× too large it is 10⁻¹⁸, and the rule stays the same rule),
-    floored at :data:`_SCALE_FLOOR` (data that are zero to round-off stop at once).
+    Stops, converged, when the Gauss–Newton decrement ``gᵀH⁻¹g`` (the objective a full step
+    would still gain on the model linearised here) is below ``rtol·ŝ²`` — a change of the
+    objective far below the noise scale means nothing statistically — or when
+    :data:`_STALL_STEPS` accepted steps in a row each gained little while the decrement is
+    statistically negligible (where the
+    objective is flat along a curved valley — a small λ, a direction the data barely see — the
+    linearisation promises more than the model holds, its weak directions within the Jacobian's
+    round-off: steps realise a small fraction of it at any damping, and without this rule LM
+    crawls to its step limit). The two stalled-rule thresholds are :data:`_STALL_GAIN` and
+    :data:`_STALL_DECREMENT` times ``rtol·ŝ²``. ``ŝ²`` is the objective per datum at the
+    current point (≈ 1 when the stated σ are right; with σ all stated 10⁹× too large it is
+    10⁻¹⁸, and the rule stays the same rule), floored at :data:`_SCALE_FLOOR` (data that are
+    zero to round-off stop at once).
     Returns ``(x, r, J, pred, Jc, converged, steps, reason)``.
     """
     cost = float(r @ r + x @ P @ x)
-    rtol = rtol * max(cost / max(len(r), 1), _SCALE_FLOOR)
-    mu = 0.0
+    mu, nu, stalled = 0.0, 2.0, 0
     for step in range(1, max_steps + 1):
-        H = J.T @ J + P
+        tol = rtol * max(cost / max(len(r), 1), _SCALE_FLOOR)
+        H = spd(J.T @ J + P)
         g = J.T @ r + P @ x
-        D = np.diag(np.diag(H))
-        try:
-            delta = -np.linalg.solve(H + mu * D, g)
-        except np.linalg.LinAlgError:
-            mu = max(mu * 10, 1e-6)
-            continue
-        decrement = float(-g @ delta)
-        if decrement < rtol and mu == 0.0:
+        decrement = _gn_decrement(H, g)
+        if decrement < tol:
             return x, r, J, pred, Jc, True, step - 1, "converged"
+        try:
+            delta = -np.linalg.solve(H + mu * np.diag(np.diag(H)), g)
+        except np.linalg.LinAlgError:
+            mu, nu = max(mu * nu, _MU_FIRST), 2 * nu
+            continue
+        predicted = float(-2 * g @ delta - delta @ H @ delta)  # the quadratic model's decrease
         r_t, J_t, pred_t, ok_t, Jc_t = linearise(x + delta)
         cost_t = (float(r_t @ r_t + (x + delta) @ P @ (x + delta))
                   if ok_t and np.all(np.isfinite(J_t)) else np.inf)
-        if cost_t <= cost:
+        rho = (cost - cost_t) / predicted if predicted > 0 else -np.inf
+        _log.debug("LM step %d: cost %.12g, trial %.12g, GN decrement %.3g (tol %.3g), "
+                   "mu %.3g, gain ratio %.3g", step, cost, cost_t, decrement, tol, mu, rho)
+        if cost_t <= cost * (1 + _COST_RTOL):
+            gain = cost - cost_t
             x, r, J, pred, Jc, cost = x + delta, r_t, J_t, pred_t, Jc_t, cost_t
-            if decrement < rtol:
+            stalled = stalled + 1 if (gain < _STALL_GAIN * tol
+                                      and decrement < _STALL_DECREMENT * tol) else 0
+            if stalled >= _STALL_STEPS:
                 return x, r, J, pred, Jc, True, step, "converged"
-            mu = 0.0 if mu <= 1e-6 else mu / 10
+            mu *= max(1 / 3, 1 - (2 * min(max(rho, 0.0), 1.0) - 1) ** 3)
+            mu = 0.0 if mu < _MU_MIN else mu
+            nu = 2.0
         else:
-            mu = max(mu * 10, 1e-6)
-            if mu > 1e12:
+            mu, nu = max(mu * nu, _MU_FIRST), 2 * nu
+            if mu > _MU_MAX:
                 return x, r, J, pred, Jc, False, step, (
                     "Levenberg-Marquardt cannot decrease the objective further (the damping "
                     "reached 1e12); the best estimate so far is returned")

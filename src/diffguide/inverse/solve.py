@@ -113,10 +113,16 @@ def solve_linear(st: FitState) -> FitState:
 
 class _RailLinearisation:
     """The linearisation in the rails and nuisances only, at the structure of ``st.x``;
-    the full linearisations of the latest trial points kept (LM's accepted point is one)."""
+    the full linearisations of the latest trial points kept (LM's accepted point is one),
+    keyed on the whole unknown vector — structure included — and the rows' weights, so that
+    one taken before the structure or the outlier weights changed is never reused."""
 
     def __init__(self, st: FitState):
         self.st, self.recent = st, {}
+
+    def key(self, xf) -> bytes:
+        """The cache key of the full unknowns ``xf`` under the current weights."""
+        return np.asarray(xf, float).tobytes() + self.st.problem.weights.tobytes()
 
     def __call__(self, xc):
         ic = self.st.problem.ic
@@ -125,8 +131,13 @@ class _RailLinearisation:
         out = self.st.problem.linearise(xf)
         if len(self.recent) > 4:
             self.recent.clear()
-        self.recent[xc.tobytes()] = out
+        self.recent[self.key(xf)] = out
         return out[0], (out[1][:, ic] if out[1] is not None else None), *out[2:]
+
+    def at(self, x):
+        """The kept full linearisation at ``x`` (all unknowns), else a new one."""
+        full = self.recent.get(self.key(x))
+        return full if full is not None else self.st.problem.linearise(x)
 
 
 def solve_lm(st: FitState, rtol: float, max_steps: int, reject_outliers: bool) -> FitState:
@@ -155,13 +166,14 @@ def solve_lm(st: FitState, rtol: float, max_steps: int, reject_outliers: bool) -
 def _lm_pass(st: FitState, linearise_c, rtol, max_steps, passes) -> None:
     ic = st.problem.ic
     r, J, pred, _, Jc = st.lin
+    x0 = st.x[ic].copy()
     xc, r, _, pred, Jc, converged, n, message = levenberg_marquardt(
-        st.x[ic], r, J[:, ic], pred, Jc, linearise_c, st.Pc, rtol, max_steps)
+        x0, r, J[:, ic], pred, Jc, linearise_c, st.Pc, rtol, max_steps)
     st.x[ic] = xc
     st.steps += n
     st.converged, st.message = converged, message
-    full = linearise_c.recent.get(xc.tobytes())
-    st.lin = full if full is not None else st.problem.linearise(st.x)
+    if not np.array_equal(xc, x0):  # else st.lin, taken at st.x, still holds
+        st.lin = linearise_c.at(st.x)
     r = st.lin[0]
     _log.info("fit: pass %d, %d LM steps, chi2 %.4g, lambda %.3g (kappa %g): %s", passes, n,
               float(r @ r), st.choice.lam, st.choice.kappa, message)

@@ -14,21 +14,41 @@ S_STEP_MM = 2.0
 
 def profile_grid(basis, step_mm: float = S_STEP_MM) -> np.ndarray:
     """The ``s`` grid (m) of ``rails.csv``: every ``step_mm`` (mm) on multiples of it over the
-    fitted range ``[basis.start, basis.end]`` (m), with both ends."""
+    fitted range ``[basis.start, basis.end]`` (m), with both ends — distinct as written (a grid
+    point that the file's 0.001 mm resolution would not tell from an end is left out: an end
+    computed as −432.00000000000005 mm next to the multiple −432 mm would otherwise be written
+    as the same ``s_mm`` twice, which no reader accepts)."""
     s0 = np.ceil(basis.start * 1e3 / step_mm - 1e-9) * step_mm
     s_m = np.arange(s0, basis.end * 1e3 + 1e-9, step_mm) * 1e-3
-    return np.unique(np.clip(np.concatenate([[basis.start], s_m, [basis.end]]), basis.start,
-                             basis.end))
+    s_m = s_m[(s_m > basis.start) & (s_m < basis.end)]
+    keys = _s_text(s_m)
+    ends = set(_s_text([basis.start, basis.end]))
+    inner = s_m[[k not in ends for k in keys]]
+    return np.concatenate([[basis.start], inner, [basis.end]])
+
+
+def _s_text(s_m) -> list[str]:
+    """``s`` (m) as ``rails.csv`` writes it (mm, 3 decimals)."""
+    return [f"{s * 1e3:.3f}" for s in np.asarray(s_m, float)]
 
 
 def rails_csv_text(s_m, val, sig) -> str:
     """``rails.csv``: ``rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,
     horizontal_sigma_um``, one row per rail and ``s``; ``s_m`` (m), profiles ``val`` and σ
-    ``sig`` ``(2 rails, 2 planes, len(s))`` (m), written in mm and µm."""
+    ``sig`` ``(2 rails, 2 planes, len(s))`` (m), written in mm and µm. ``s_m`` must increase
+    by at least the file's resolution, 0.001 mm (:func:`profile_grid` does), so that the file
+    reads back (:func:`diffguide.io.rails_csv.read_rails_samples`); ``ValueError`` otherwise."""
+    s_text = _s_text(s_m)
+    s_back = np.array([float(s) for s in s_text])
+    if np.any(np.diff(s_back) <= 0):
+        i = int(np.flatnonzero(np.diff(s_back) <= 0)[0])
+        raise ValueError(f"rails.csv: s must increase by at least 0.001 mm, the file's "
+                         f"resolution; rows {i + 1} and {i + 2} read {s_text[i]} and "
+                         f"{s_text[i + 1]} mm")
     lines = ["rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um"]
     for r in range(2):
-        for i, s in enumerate(s_m):
-            lines.append(f"{r + 1},{s * 1e3:.3f},{val[r, 0, i] * 1e6:.5f},"
+        for i, s in enumerate(s_text):
+            lines.append(f"{r + 1},{s},{val[r, 0, i] * 1e6:.5f},"
                          f"{sig[r, 0, i] * 1e6:.5f},{val[r, 1, i] * 1e6:.5f},"
                          f"{sig[r, 1, i] * 1e6:.5f}")
     return "\n".join(lines) + "\n"
@@ -38,9 +58,14 @@ def fit_csv_text(meas, fits: dict) -> str:
     """``fit.csv``: every input reading (``meas.readings``, in its own unit) with its status
     (used, an outlier reading set aside when merging, an outlier value given zero weight) and,
     per fit in ``fits`` (``{label: RailFit}``, ``""`` the elastic fit, whose outliers are
-    reported), the fitted value and the residual ``measured − fitted`` in the reading's unit."""
+    reported), the fitted value and the residual ``measured − fitted`` in the reading's unit.
+
+    The file is a measurement file in the long format (:mod:`.measurements`; the extra columns
+    are ignored there): the reading's ``sigma`` (empty where none was given), ``z_mm`` and
+    ``resolution`` (the rounding step ``√12·u`` of the value as first written, 0 where unknown)
+    are written with it, so ``diffguide fit --measurements fit.csv`` merges the same data."""
     cols = ["line", "position_mm", "point", "x_mm", "y_mm", "quantity", "value", "unit", "run",
-            "direction", "instrument", "status"]
+            "direction", "instrument", "sigma", "z_mm", "resolution", "status"]
     for label in fits:
         cols += [f"fitted{label}", f"residual{label}"]
     outlier_rows = set(int(i) for i in fits[""].outliers)
@@ -53,6 +78,8 @@ def fit_csv_text(meas, fits: dict) -> str:
                "x_mm": float(r.xy[0] * 1e3), "y_mm": float(r.xy[1] * 1e3),
                "quantity": r.quantity, "value": float(r.value / f), "unit": r.unit,
                "run": r.run, "direction": r.direction, "instrument": r.instrument,
+               "sigma": "" if r.sigma is None else float(r.sigma / f),
+               "z_mm": float(r.z * 1e3), "resolution": float(np.sqrt(12.0) * r.resolution / f),
                "status": status}
         for label, fit in fits.items():
             row[f"fitted{label}"] = "" if k < 0 else float(fit.fitted[k] / f)

@@ -5,6 +5,7 @@ import numpy as np
 
 from ..inverse import identifiability
 from ..inverse.data import QUANTITIES
+from ..inverse.diagnose import MISFIT_CHI2, diagnose_fit
 from ..inverse.validity import fit_checks
 from ..machine.validity import rail_range
 from ..studies.iso230_2 import channel_figures
@@ -48,7 +49,26 @@ def fit_report(meas, fits: dict, profiles: dict, seconds: dict, machine, *, sour
     if truth is not None:
         report["truth"] = _truth_section(profiles, truth, truth_file)
     report["validity"] = [w.as_dict() for w in fit_validity(elastic, meas, machine)]
+    report["misfit"] = misfit_section(elastic, meas, machine)
     return report
+
+
+def misfit_section(fit, meas, machine) -> dict:
+    """``report.json``'s ``misfit``: when ``χ²/dof`` exceeds :data:`~diffguide.inverse.diagnose.
+    MISFIT_CHI2`, the likely causes found in the residuals (:mod:`diffguide.inverse.diagnose`;
+    the default knot spacing, the carriage's loaded length, is the finest suggested), each with
+    its channels named, what to do and its numbers (mm where a length)."""
+    findings = diagnose_fit(fit, meas, default_spacing=float(machine.carriage.length))
+    return {"chi2_dof": float(fit.chi2_dof), "threshold": MISFIT_CHI2,
+            "findings": [{**f.as_dict(), "channels": [meas.channel_label(c) for c in f.channels]}
+                         for f in findings]}
+
+
+def misfit_lines(report: dict) -> list[str]:
+    """The console lines of ``report["misfit"]``: one per likely cause, with what to do."""
+    section = report.get("misfit") or {}
+    return [f"misfit (chi2/dof {section['chi2_dof']:.3g}): {f['message']}; {f['action']}"
+            for f in section.get("findings", [])]
 
 
 def fit_validity(fit, meas, machine) -> list:
