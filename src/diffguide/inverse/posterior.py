@@ -15,8 +15,10 @@ import logging
 
 import numpy as np
 
+from .bands import Floor, undetermined_floor
 from .lm import spd
 from .solve import FitState
+from .spread import Spread, nonlinear_spread
 
 _log = logging.getLogger("diffguide")
 #: Half-step of :func:`structure_sensitivity`'s secant, within these limits (prior σ).
@@ -27,7 +29,8 @@ SECANT_STEP_LIMITS = (0.05, 1.0)
 class Posterior:
     """What :func:`posterior` returns. r: the whitened residual at the solution; cov_x:
     ``(n_x, n_x)`` covariance of all unknowns (µm², prior σ² for ``q``), scaled by
-    ``sigma_scale²``; G: ``∂ĉ/∂q`` ``(len(ic), n_q)``; chi2, dof, edf, sigma_scale."""
+    ``sigma_scale²``; G: ``∂ĉ/∂q`` ``(len(ic), n_q)``; chi2, dof, edf, sigma_scale; floor:
+    the undetermined directions' floor added to the rails' block (:mod:`.bands`)."""
 
     r: np.ndarray
     cov_x: np.ndarray
@@ -36,6 +39,8 @@ class Posterior:
     dof: float
     edf: float
     sigma_scale: float
+    floor: Floor | None = None
+    spread: Spread | None = None
 
 
 def posterior(st: FitState, method: str) -> Posterior:
@@ -63,8 +68,20 @@ def posterior(st: FitState, method: str) -> Posterior:
     cov_x[np.ix_(ic, iq)] = G @ cov_q
     cov_x[np.ix_(iq, ic)] = (G @ cov_q).T
     cov_x[np.ix_(iq, iq)] = cov_q
+    spread = None
+    if method == "lm":  # the model re-linearised across the posterior (:mod:`.spread`)
+        spread = nonlinear_spread(st, cov_x[np.ix_(ic, ic)])
+        cov_x[np.ix_(ic, ic)] += sigma_scale**2 * spread.extra
+        if spread.samples:
+            _log.info("fit: %s", spread.note())
+    nt = p.n_theta
+    floor = undetermined_floor(p.rail_data(J, st.lin[0], x)[0], st.P[:nt, :nt], p.basis, p.Z,
+                               p.Om_curv, p.Om_amp, x[:nt])
+    cov_x[:nt, :nt] += floor.extra
+    if floor.n_directions:
+        _log.info("fit: %s", floor.note())
     return Posterior(r=r, cov_x=cov_x, G=G, chi2=chi2, dof=dof, edf=edf,
-                     sigma_scale=sigma_scale)
+                     sigma_scale=sigma_scale, floor=floor, spread=spread)
 
 
 def structure_sensitivity(st: FitState, x_at, Hc_inv):
