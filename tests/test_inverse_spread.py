@@ -9,7 +9,6 @@ import numpy as np
 
 from diffguide.inverse import spread
 
-
 #: Each row's gain: the one unknown moves the rows differently (a constant would be the
 #: channel's zero, profiled out as in the fit).
 GAIN = np.array([1.0, -1.0, 0.5, -0.5])

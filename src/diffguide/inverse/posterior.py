@@ -42,6 +42,11 @@ class Posterior:
     floor: Floor | None = None
     spread: Spread | None = None
 
+    def notes(self) -> str:
+        """What the bands' floor and spread did, for the fit's message (``""``: nothing)."""
+        parts = [x.note() for x in (self.spread, self.floor) if x is not None]
+        return "".join(f"; bands: {n}" for n in parts if n)
+
 
 def posterior(st: FitState, method: str) -> Posterior:
     """The posterior of the solved state ``st`` (module docstring); for the linear method the
