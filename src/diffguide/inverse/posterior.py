@@ -8,6 +8,14 @@ the structure's own uncertainty carried in by the delta method, and the χ² acc
 ``s² = max(1, χ²/dof)`` (the bands widen when the model does not explain the data to their
 stated σ, never narrow), ``χ²/dof = ‖r‖² / (N − n_channels − edf)``,
 ``edf = tr(H_c⁻¹J_cᵀJ_c) + tr(I − Cov q)``.
+
+Two corrections follow, each only widening (neither changes the estimate, χ² or ``edf``):
+
+- where the model is not linear across the rails' posterior (rows of rolling elements that
+  unload within it), the spread and shift of randomised-maximum-likelihood samples re-linearised
+  along the way (:mod:`.spread`; Levenberg–Marquardt fits only);
+- in the directions the data do not determine, the prior's scale is floored between its own
+  extrapolation and the content the fit found (:mod:`.bands`).
 """
 
 import dataclasses
