@@ -20,6 +20,8 @@ from diffguide.inverse import RailBasis, blind_wavelengths
 from diffguide.io.measurements import QUANTITIES
 
 WRONG_STRUCTURE = [name for name, make in CASES.items() if make().wrong_structure]
+#: Cases measured with the planned layout already (the planned-layout comparisons skip them).
+ALREADY_PLANNED = [name for name, make in CASES.items() if make().sensors == cases.PLANNED]
 
 #: Cases that still fail, per test, with the numbers measured with the fit whose structure comes
 #: from the marginal likelihood (bench/battery_table.py). Kept as expected failures so that the
@@ -55,6 +57,12 @@ XFAIL: dict[tuple[str, str], str] = {
     "11 %), the other combinations 3-7 %. With the machine that made the data 18 % (17 % at the "
     "hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data"
     "; with the planned layout it holds: test_the_15_percent_bound_holds_with_the_planned_layout",
+    ("error", "planned_undetermined"): _NOW + "profile errors 22/28/27/35 %: the case puts "
+    "0.5 µm sines at 285/320/363 mm, the wavelengths the planned layout leaves undetermined (the "
+    "rails' mean around the carriage spacing, where pitch and yaw cancel); no layout of these "
+    "instruments holds them, and the bands say so (test_truth_inside_2_sigma_per_plane)",
+    ("combinations", "planned_undetermined"): _NOW + "the two planes' means 23/30 % off: that is "
+    "where this case's content at the undetermined wavelengths (285-363 mm) sits",
 }
 
 
@@ -306,7 +314,7 @@ def test_structure_sensitivity_matches_refitting(monkeypatch):
                 assert rel <= 0.10, (i, r, p, rel)
 
 
-@pytest.mark.parametrize("name", WRONG_STRUCTURE)
+@pytest.mark.parametrize("name", [n for n in WRONG_STRUCTURE if n not in ALREADY_PLANNED])
 def test_wrong_structure_nearly_as_good_as_knowing_it(name):
     """What estimating the structure costs: against the *oracle* fit — the same data and fit
     with the truth's thickness and preload given (``cases.oracle_score``) — the profile error,
@@ -315,7 +323,9 @@ def test_wrong_structure_nearly_as_good_as_knowing_it(name):
     Measured: overall 0.154/0.165/0.087/0.061 against 0.164/0.141/0.090/0.061 (70 mm, 2 %,
     13 %, 30 mm), worst profile 0.28/0.25/0.17/0.09 against 0.30/0.22/0.17/0.09: the 15 %
     per-profile bound of the test above is beyond what these data hold for the horizontal
-    profiles even with the structure known."""
+    profiles even with the structure known. Cases measured with the planned layout already
+    (``ALREADY_PLANNED``) are left out: what they stress is the layout's undetermined
+    wavelengths, which no structure estimate changes."""
     res = result(name)
     assert res.fit is not None, res.error
     sc, oracle = res.score, cases.oracle_score(name)
@@ -324,7 +334,7 @@ def test_wrong_structure_nearly_as_good_as_knowing_it(name):
     assert sc.overall_coverage >= min(oracle.overall_coverage, 0.95) - 0.02
 
 
-@pytest.mark.parametrize("name", WRONG_STRUCTURE)
+@pytest.mark.parametrize("name", _params("combinations", WRONG_STRUCTURE))
 def test_wrong_structure_determined_combinations_within_15_percent(name):
     """What the data determine, the structure estimated recovers within the 15 % bound: per
     plane, the two rails' mean and, in the vertical plane, their difference (pitch, yaw and roll
@@ -342,7 +352,8 @@ def test_wrong_structure_determined_combinations_within_15_percent(name):
 
 
 #: The wrong-structure cases whose 15 % per-profile bound fails (XFAIL above).
-_BEYOND_THE_DATA = [n for n in WRONG_STRUCTURE if ("error", n) in XFAIL]
+_BEYOND_THE_DATA = [n for n in WRONG_STRUCTURE
+                    if ("error", n) in XFAIL and n not in ALREADY_PLANNED]
 
 
 @pytest.mark.parametrize("name", _BEYOND_THE_DATA)
@@ -365,7 +376,7 @@ def test_the_15_percent_bound_is_beyond_the_data(name):
     assert sc.coverage[worst] >= 0.70, sc.coverage
 
 
-@pytest.mark.parametrize("name", WRONG_STRUCTURE)
+@pytest.mark.parametrize("name", [n for n in WRONG_STRUCTURE if n not in ALREADY_PLANNED])
 def test_the_15_percent_bound_holds_with_the_planned_layout(name):
     """What the bound needs is more data, and the planner says which: the same wrong-structure
     case (truth, machine, noise seed, fit with the structure unknown) measured with
