@@ -46,7 +46,7 @@ def _mode(f, y, sigma, prior_prec, grid):
 def test_a_linear_model_keeps_its_gauss_newton_posterior():
     y = np.array([1.0, -1.2, 0.4, -0.6])
     st = _state(lambda x: 2.0 * x, lambda x: 2.0, y, 0.1, 1.0, 0.5)
-    out = spread.nonlinear_spread(st, np.array([[1.0]]))
+    out = spread.nonlinear_spread(st)
     assert out.samples == 0 and not np.any(out.extra)
     assert np.all(out.nu < 1e-20)
 
@@ -73,7 +73,7 @@ def test_a_slope_that_drops_across_the_posterior_widens_the_band():
     st = _state(f, df, y, sigma, prec, x_hat)
     J = st.lin[1]
     gn = 1.0 / float((J.T @ J)[0, 0] + prec)
-    out = spread.nonlinear_spread(st, np.array([[gn]]), n_samples=64)
+    out = spread.nonlinear_spread(st, n_samples=64)
     assert out.samples > 0
     widened = gn + float(out.extra[0, 0])
     assert widened >= 2 * gn, (gn, widened, second)

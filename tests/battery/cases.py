@@ -391,14 +391,8 @@ def _plane_scaled(planes: dict, rms_um: dict[str, float]) -> dict:
 
 
 def large_rails_horizontal() -> Case:
-    """Rails 15 µm RMS vertically, 12 µm horizontally (6 sines, 150–900 mm): rows unload."""
-    rng = np.random.default_rng(1818)
-    planes = {}
-    for key, plane in BUNDLED_TRUTH.planes.items():
-        lam = np.exp(rng.uniform(np.log(0.15), np.log(0.9), 6))
-        amp = rng.normal(0.0, 1.0, 6) * lam / 0.9
-        planes[key] = Plane(plane.poly, tuple(zip(amp, lam, rng.uniform(0.0, 2 * np.pi, 6))))
-    planes = _plane_scaled(planes, {"vertical": 15.0, "horizontal": 12.0})
+    """Rich truth (14 sines, 90–900 mm) at 15 µm RMS vertical, 12 µm horizontal: rows unload."""
+    planes = _plane_scaled(rich_truth().truth.planes, {"vertical": 15.0, "horizontal": 12.0})
     return _case(large_rails_horizontal, truth=Truth(planes), seed=1818)
 
 

@@ -83,8 +83,8 @@ def posterior(st: FitState, method: str) -> Posterior:
     cov_x[np.ix_(iq, iq)] = cov_q
     spread = None
     if method == "lm":  # the model re-linearised across the posterior (:mod:`.spread`)
-        spread = nonlinear_spread(st, cov_x[np.ix_(ic, ic)])
-        cov_x[np.ix_(ic, ic)] += sigma_scale**2 * spread.extra
+        spread = nonlinear_spread(st, sigma_scale)
+        cov_x[np.ix_(ic, ic)] += spread.extra
         if spread.samples:
             _log.info("fit: %s", spread.note())
     nt = p.n_theta

@@ -7,11 +7,11 @@ the Jacobian changes within the posterior's own spread: a row unloaded at the es
 no information there, yet a sample one σ away loads it again. The bands then describe a
 linearisation that does not hold a σ away.
 
-**The check** (:func:`nonlinearity`). At :data:`PROBE` draws ``x_k ~ N(x̂, H⁻¹)`` (rails and
-nuisances; the structure at its estimate) the model is evaluated and compared with its
+**The check** (:func:`nonlinearity`). At :data:`PROBE` draws ``x_k ~ N(x̂, s²H⁻¹)`` (rails and
+nuisances; the structure at its estimate; ``s`` below) the model is evaluated and compared with its
 linearisation at ``x̂``: ``ν_k = ‖r(x_k) − r̂ − Ĵ(x_k − x̂)‖²`` (whitened: the χ² the
-linearisation misses one posterior draw away). Below :data:`NU_TOL` (a tenth of one datum's
-χ²) the linear posterior stands.
+linearisation misses one posterior draw away). Below :data:`NU_TOL` ``·s²`` (a tenth of one
+datum's χ²) the linear posterior stands.
 
 **Randomised maximum likelihood** (Oliver, He & Reynolds 1996; Kitanidis 1995) otherwise: each
 of :data:`N_SAMPLES` samples minimises the objective with its data and prior perturbed by their
@@ -20,7 +20,10 @@ own distributions,
 .. math::  x_k = \arg\min_x ‖r(x) − ε_k‖² + (x − δ_k)ᵀP_c(x − δ_k),\qquad
            ε_k \sim N(0, Π),\ δ_k \sim N(0, P_c⁻¹),
 
-``Π`` the projection that removes each channel's zero (profiled out of ``r``). For a linear
+``Π`` the projection that removes each channel's zero (profiled out of ``r``); both scaled by
+the posterior's ``s = √max(1, χ²/dof)`` (:mod:`.posterior`): where the model does not explain
+the data to their stated σ the posterior is ``s`` times wider, and it is at that spread that
+the model must be linear (rows unload further out). For a linear
 model the ``x_k`` are exact posterior draws; for a nonlinear one, the standard approximation.
 Each is solved by :data:`GN_STEPS` Gauss–Newton steps from ``x̂``, the Jacobian taken again at
 every step; the first step is the linear posterior's draw ``x_k^{(1)} = x̂ + Ĥ⁻¹(Ĵᵀε_k + P_cδ_k)``
@@ -111,9 +114,11 @@ def nonlinearity(st, draws, r0, J0) -> np.ndarray:
     return np.array(out)
 
 
-def nonlinear_spread(st, cov_c, *, n_samples: int = N_SAMPLES, seed: int = SEED) -> Spread:
-    """The covariance to add to ``cov_c`` (the rails-and-nuisances posterior, µm²) where the model
-    is not linear across it (module docstring)."""
+def nonlinear_spread(st, scale: float = 1.0, *, n_samples: int = N_SAMPLES,
+                     seed: int = SEED) -> Spread:
+    """The covariance (µm², rails and nuisances) to add to the Gauss–Newton posterior
+    ``scale² H⁻¹`` where the model is not linear across it (module docstring); ``scale`` is the
+    posterior's ``√max(1, χ²/dof)``: the samples are drawn at the spread the bands have."""
     p = st.problem
     ic = p.ic
     xc0 = st.x[ic]
@@ -123,8 +128,8 @@ def nonlinear_spread(st, cov_c, *, n_samples: int = N_SAMPLES, seed: int = SEED)
     project = _channel_projection(p)
     rng = np.random.default_rng(seed)
     n = len(ic)
-    eps = [project(rng.standard_normal(len(r0))) for _ in range(n_samples)]
-    delta = [np.linalg.solve(Lp.T, rng.standard_normal(n)) for _ in range(n_samples)]
+    eps = [scale * project(rng.standard_normal(len(r0))) for _ in range(n_samples)]
+    delta = [scale * np.linalg.solve(Lp.T, rng.standard_normal(n)) for _ in range(n_samples)]
 
     def step(x, r, J, e, d):
         g = J.T @ (r - e) + Pc @ (x - d)
@@ -132,7 +137,7 @@ def nonlinear_spread(st, cov_c, *, n_samples: int = N_SAMPLES, seed: int = SEED)
 
     first = np.array([step(xc0, r0, J0, e, d) for e, d in zip(eps, delta)])
     nu = nonlinearity(st, first[:PROBE], r0, J0)
-    if np.all(nu < NU_TOL):
+    if np.all(nu < NU_TOL * scale**2):
         return Spread(np.zeros((n, n)), nu, 0)
     _log.info("fit: the model is not linear across the rails' posterior (missed chi2 %s); "
               "randomised maximum likelihood, %d samples", np.array2string(nu, precision=3),
