@@ -52,8 +52,8 @@ PROBE = 2
 #: Largest missed χ² (whitened) one posterior draw away for which the linear posterior stands.
 NU_TOL = 0.1
 #: Randomised-maximum-likelihood samples, and Gauss–Newton steps each.
-N_SAMPLES = 12
-GN_STEPS = 2
+N_SAMPLES = 16
+GN_STEPS = 8
 SEED = 20250528
 
 
