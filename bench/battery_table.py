@@ -5,7 +5,8 @@ the readings as CSV text, parse and merge, fit with ``tests/battery/cases.run_fi
 prints one row per case: what it stresses, χ²/dof, the profile RMS error (µm, and % of the
 truth's RMS; all four profiles, gauge removed, 10 % trimmed at each end), the RMS of the fit's σ
 (100 % coverage under a huge σ says nothing), the ±2σ coverage
-(overall and the worst profile), LM convergence and the seconds from readings to score (machine
+(overall and the worst profile), the ±2σ coverage per plane (vertical / horizontal, both rails'
+profiles together), LM convergence and the seconds from readings to score (machine
 builds and compiles included where a case is the first to need them; noisy on a shared CPU).
 A fit that raises is a row too, with the exception. Run:
 
@@ -34,7 +35,7 @@ def _row(res) -> tuple[str, dict]:
     if res.fit is None:
         msg = res.error.splitlines()[0]
         msg = msg if len(msg) <= 90 else msg[:87] + "..."
-        row = (f"| {c.name} | {c.stresses} | — | raised: `{msg}` | — | — | — | — | "
+        row = (f"| {c.name} | {c.stresses} | — | raised: `{msg}` | — | — | — | — | — | "
                f"{res.seconds:.0f} |")
         return row, {"name": c.name, "error": res.error, "seconds": res.seconds}
     s = res.score
@@ -44,8 +45,8 @@ def _row(res) -> tuple[str, dict]:
         f"({100 * s.overall_rel:.0f} %; worst {100 * s.worst_rel:.0f} %) | "
         f"{s.overall_sigma_rms_um:.3g} µm | "
         f"{100 * s.overall_coverage:.0f} % / {100 * s.worst_coverage:.0f} % "
-        f"({s.label(r, p)}) | {_structure(res)} | {'yes' if res.fit.converged else '**no**'} | "
-        f"{res.seconds:.0f} |"
+        f"({s.label(r, p)}) | {_per_plane(s)} | {_structure(res)} | "
+        f"{'yes' if res.fit.converged else '**no**'} | {res.seconds:.0f} |"
     )
     data = {
         "name": c.name,
@@ -59,10 +60,22 @@ def _row(res) -> tuple[str, dict]:
         "rms_um": s.rms_um.tolist(),
         "rel": s.rel.tolist(),
         "coverage": s.coverage.tolist(),
+        "plane_coverage": plane_coverage(s).tolist(),
         "truth_rms_um": s.truth_rms_um.tolist(),
         "sigma_rms_um": s.sigma_rms_um.tolist(),
     }
     return row, data
+
+
+def plane_coverage(score):
+    """±2σ coverage per plane ``(vertical, horizontal)``: the two rails' profiles together (they
+    are scored on the same points)."""
+    return score.coverage.mean(axis=0)
+
+
+def _per_plane(score) -> str:
+    v, h = plane_coverage(score)
+    return f"{100 * v:.0f} % / {100 * h:.0f} %"
 
 
 def _structure(res) -> str:
@@ -94,9 +107,10 @@ def main() -> None:
     )
     print(
         "| case | what it stresses | χ²/dof | profile RMS error (% of truth) | σ RMS | "
-        "±2σ coverage: all / worst profile | structure (truth) | converged | s |"
+        "±2σ coverage: all / worst profile | ±2σ coverage V / H | structure (truth) | "
+        "converged | s |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     out = []
     for name in names:
         row, data = _row(result(name))

@@ -20,19 +20,17 @@ from diffguide.inverse import RailBasis, blind_wavelengths
 from diffguide.io.measurements import QUANTITIES
 
 WRONG_STRUCTURE = [name for name, make in CASES.items() if make().wrong_structure]
+#: Cases measured with the planned layout already (the planned-layout comparisons skip them).
+ALREADY_PLANNED = [name for name, make in CASES.items() if make().sensors == cases.PLANNED]
 
 #: Cases that still fail, per test, with the numbers measured with the fit whose structure comes
 #: from the marginal likelihood (bench/battery_table.py). Kept as expected failures so that the
 #: suite shows them; each is an open problem, not a pass.
 _NOW = "measured: "
 XFAIL: dict[tuple[str, str], str] = {
-    ("coverage", "blind_wavelengths"): _NOW + "error 70 % of the truth RMS, coverage 70 % overall, "
-    "65 % worst: content the carriages cannot see (48 mm is also the knot spacing) gets the σ of "
-    "a prior whose scale the visible content set; an honest band there needs a figure the user "
-    "states: with waviness= 0.2/0.3 µm RMS the coverage is 86/95 % (84/92 % worst), "
-    "test_stated_waviness_covers_the_blind_content; scored without the 48 mm content the same "
-    "bands hold 90 % (83-95 % per profile), test_blind_case_bands_hold_everything_the_data_can_see",
-    ("coverage", "with_straightness"): _NOW + "coverage 82 % overall, 61 % worst on this case's "
+    ("coverage", "with_straightness"): _NOW + "coverage 86 % overall, 70.4 % worst (at the "
+    "bound; 82/61 % before the floor on the undetermined directions, inverse/bands.py) on this "
+    "case's "
     "seed (707), where the thickness comes back 43 ± 5 mm (truth 50) and χ²/dof is 0.77; the "
     "structure estimate sits 2.1σ (thickness and preload jointly) from the truth in the direction "
     "that moves the horizontal profiles most; on seeds 1-40 of the same case it passes (overall "
@@ -55,6 +53,18 @@ XFAIL: dict[tuple[str, str], str] = {
     "11 %), the other combinations 3-7 %. With the machine that made the data 18 % (17 % at the "
     "hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data"
     "; with the planned layout it holds: test_the_15_percent_bound_holds_with_the_planned_layout",
+    ("error", "planned_undetermined"): _NOW + "profile errors 22/28/27/35 %: the case puts "
+    "0.5 µm sines at 285/320/363 mm, the wavelengths the planned layout leaves undetermined (the "
+    "rails' mean around the carriage spacing, where pitch and yaw cancel); no layout of these "
+    "instruments holds them, and the bands say so (test_truth_inside_2_sigma_per_plane)",
+    ("per_plane", "large_rails_horizontal"): _NOW + "±2σ coverage per plane 98/83 % (vertical/"
+    "horizontal; 95/60 % with the Gauss-Newton bands alone): the horizontal mean comes back 54 % "
+    "off (6.9 µm RMS against bands of 4.9 µm RMS) with χ²/dof 5.0 — the fit does not explain "
+    "these data to their σ. The randomised-maximum-likelihood samples widen the bands more the "
+    "further each is solved: 74/78/81/83 % with 12×2, 8×4, 16×4, 16×8 samples × Gauss-Newton "
+    "steps (16×8 the default)",
+    ("combinations", "planned_undetermined"): _NOW + "the two planes' means 23/30 % off: that is "
+    "where this case's content at the undetermined wavelengths (285-363 mm) sits",
 }
 
 
@@ -260,7 +270,8 @@ def test_stated_waviness_covers_the_blind_content():
 
 
 def test_blind_case_bands_hold_everything_the_data_can_see():
-    """The blind-wavelength case's coverage (XFAIL above) is lost entirely to the content no
+    """The blind-wavelength case's coverage (70/65 % before the floor on the undetermined
+    directions, inverse/bands.py; 87/84 % with it) was lost entirely to the content no
     data can see: scored against its truth without the 48 mm sines (the carriages' averaging
     wavelength, also the knot spacing), the same fit holds the truth inside ±2σ at ≥ 85 % of
     the points and ≥ 70 % on every profile — the long blind wavelengths (213/320/640 mm), which
@@ -315,7 +326,7 @@ def test_structure_sensitivity_matches_refitting(monkeypatch):
                 assert rel <= 0.10, (i, r, p, rel)
 
 
-@pytest.mark.parametrize("name", WRONG_STRUCTURE)
+@pytest.mark.parametrize("name", [n for n in WRONG_STRUCTURE if n not in ALREADY_PLANNED])
 def test_wrong_structure_nearly_as_good_as_knowing_it(name):
     """What estimating the structure costs: against the *oracle* fit — the same data and fit
     with the truth's thickness and preload given (``cases.oracle_score``) — the profile error,
@@ -324,7 +335,9 @@ def test_wrong_structure_nearly_as_good_as_knowing_it(name):
     Measured: overall 0.154/0.165/0.087/0.061 against 0.164/0.141/0.090/0.061 (70 mm, 2 %,
     13 %, 30 mm), worst profile 0.28/0.25/0.17/0.09 against 0.30/0.22/0.17/0.09: the 15 %
     per-profile bound of the test above is beyond what these data hold for the horizontal
-    profiles even with the structure known."""
+    profiles even with the structure known. Cases measured with the planned layout already
+    (``ALREADY_PLANNED``) are left out: what they stress is the layout's undetermined
+    wavelengths, which no structure estimate changes."""
     res = result(name)
     assert res.fit is not None, res.error
     sc, oracle = res.score, cases.oracle_score(name)
@@ -333,7 +346,7 @@ def test_wrong_structure_nearly_as_good_as_knowing_it(name):
     assert sc.overall_coverage >= min(oracle.overall_coverage, 0.95) - 0.02
 
 
-@pytest.mark.parametrize("name", WRONG_STRUCTURE)
+@pytest.mark.parametrize("name", _params("combinations", WRONG_STRUCTURE))
 def test_wrong_structure_determined_combinations_within_15_percent(name):
     """What the data determine, the structure estimated recovers within the 15 % bound: per
     plane, the two rails' mean and, in the vertical plane, their difference (pitch, yaw and roll
@@ -351,7 +364,8 @@ def test_wrong_structure_determined_combinations_within_15_percent(name):
 
 
 #: The wrong-structure cases whose 15 % per-profile bound fails (XFAIL above).
-_BEYOND_THE_DATA = [n for n in WRONG_STRUCTURE if ("error", n) in XFAIL]
+_BEYOND_THE_DATA = [n for n in WRONG_STRUCTURE
+                    if ("error", n) in XFAIL and n not in ALREADY_PLANNED]
 
 
 @pytest.mark.parametrize("name", _BEYOND_THE_DATA)
@@ -374,7 +388,7 @@ def test_the_15_percent_bound_is_beyond_the_data(name):
     assert sc.coverage[worst] >= 0.70, sc.coverage
 
 
-@pytest.mark.parametrize("name", WRONG_STRUCTURE)
+@pytest.mark.parametrize("name", [n for n in WRONG_STRUCTURE if n not in ALREADY_PLANNED])
 def test_the_15_percent_bound_holds_with_the_planned_layout(name):
     """What the bound needs is more data, and the planner says which: the same wrong-structure
     case (truth, machine, noise seed, fit with the structure unknown) measured with
@@ -458,3 +472,25 @@ def test_the_structure_estimate_is_the_minimum_of_its_objective(monkeypatch):
         for b in np.linspace(-3, 3, 7):
             p = np.clip(q + np.array([a, b]) * cond, bounds[:, 0], bounds[:, 1])
             assert score(p) >= f0 - 0.05, (p, score(p), q, f0)
+
+
+#: Issue 28's two cases whose bands must hold in each plane: large rails with horizontal
+#: content (rows unload: the model is not linear across the posterior) and the planned layout
+#: with content at the wavelengths it leaves undetermined (the bands there are the prior's).
+PER_PLANE = ("large_rails_horizontal", "planned_undetermined")
+
+
+@pytest.mark.parametrize("name", _params("per_plane", PER_PLANE))
+def test_truth_inside_2_sigma_per_plane(name):
+    """The truth inside ±2σ at ≥ 85 % of the points in each plane (vertical, horizontal; both
+    rails' profiles together, scored on the same points). Measured (vertical / horizontal),
+    before → after the floor on the undetermined directions (inverse/bands.py) and the
+    randomised-maximum-likelihood spread (inverse/spread.py): planned_undetermined 71/91 % →
+    100/100 % (σ RMS 0.21 → 0.60 µm against errors of 0.32-0.37 µm RMS);
+    large_rails_horizontal 95/60 % → 98/83 % (an expected failure, XFAIL)."""
+    res = result(name)
+    assert res.fit is not None, res.error
+    sc = res.score
+    per_plane = sc.coverage.mean(axis=0)
+    assert np.all(per_plane >= 0.85), (per_plane, sc.coverage)
+

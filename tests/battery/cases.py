@@ -391,6 +391,47 @@ def rich_data() -> Case:
                                sensors=CORNERS_RICH, seed=1818)
 
 
+def _plane_scaled(planes: dict, rms_um: dict[str, float]) -> dict:
+    """``planes`` with each plane's two profiles scaled together so that their RMS (each less its
+    mean, over :data:`RMS_RANGE`) is ``rms_um[plane]`` (µm): a truth whose vertical and
+    horizontal content differ in size (``Case.rms_um`` scales all four profiles alike)."""
+    s = np.linspace(*RMS_RANGE, 1001)
+    out = dict(planes)
+    for pl, target in rms_um.items():
+        keys = [k for k in planes if k[1] == pl]
+        e = np.array([_evaluate(np, s, *_arrays(planes[k], 1.0)) for k in keys]) * 1e6
+        e = e - e.mean(axis=1, keepdims=True)
+        k = target / float(np.sqrt(np.mean(e**2)))
+        for key in keys:
+            p = planes[key]
+            out[key] = Plane(tuple(a * k for a in p.poly),
+                             tuple((a * k, lam, ph) for a, lam, ph in p.waves),
+                             (p.step[0] * k, p.step[1], p.step[2]))
+    return out
+
+
+def large_rails_horizontal() -> Case:
+    """Rich truth (14 sines, 90–900 mm) at 15 µm RMS vertical, 12 µm horizontal: rows unload."""
+    planes = _plane_scaled(rich_truth().truth.planes, {"vertical": 15.0, "horizontal": 12.0})
+    return _case(large_rails_horizontal, truth=Truth(planes), seed=1818)
+
+
+#: Wavelengths (m) that the :data:`PLANNED` layout leaves undetermined on the ``majda2012``
+#: preset (its identifiability report lists 285–363 mm, around the carriage spacing).
+UNDETERMINED_WAVELENGTHS = (0.285, 0.320, 0.363)
+
+
+def planned_undetermined() -> Case:
+    """Planned layout, 72 mm table, 4 % preload, 0.5 µm at 285/320/363 mm on the bundled truth."""
+    planes = {}
+    for i, (key, plane) in enumerate(BUNDLED_TRUTH.planes.items()):
+        waves = tuple((0.5, lam, 0.9 * i + 1.3 * j)
+                      for j, lam in enumerate(UNDETERMINED_WAVELENGTHS))
+        planes[key] = dataclasses.replace(plane, waves=plane.waves + waves)
+    return _case(planned_undetermined, truth=Truth(planes), sensors=PLANNED, thickness=0.072,
+                 preload=0.04, seed=1919)
+
+
 #: Every case, by name, in table order.
 CASES: dict[str, Callable[[], Case]] = {
     f.__name__: f
@@ -413,6 +454,8 @@ CASES: dict[str, Callable[[], Case]] = {
         preload_2pct,
         preload_13pct,
         rich_data,
+        large_rails_horizontal,
+        planned_undetermined,
     )
 }
 

@@ -8,6 +8,14 @@ the structure's own uncertainty carried in by the delta method, and the χ² acc
 ``s² = max(1, χ²/dof)`` (the bands widen when the model does not explain the data to their
 stated σ, never narrow), ``χ²/dof = ‖r‖² / (N − n_channels − edf)``,
 ``edf = tr(H_c⁻¹J_cᵀJ_c) + tr(I − Cov q)``.
+
+Two corrections follow, each only widening (neither changes the estimate, χ² or ``edf``):
+
+- where the model is not linear across the rails' posterior (rows of rolling elements that
+  unload within it), the spread and shift of randomised-maximum-likelihood samples re-linearised
+  along the way (:mod:`.spread`; Levenberg–Marquardt fits only);
+- in the directions the data do not determine, the prior's scale is floored between its own
+  extrapolation and the content the fit found (:mod:`.bands`).
 """
 
 import dataclasses
@@ -15,8 +23,10 @@ import logging
 
 import numpy as np
 
+from .bands import Floor, undetermined_floor
 from .lm import spd
 from .solve import FitState
+from .spread import Spread, nonlinear_spread
 
 _log = logging.getLogger("diffguide")
 #: Half-step of :func:`structure_sensitivity`'s secant, within these limits (prior σ).
@@ -27,7 +37,8 @@ SECANT_STEP_LIMITS = (0.05, 1.0)
 class Posterior:
     """What :func:`posterior` returns. r: the whitened residual at the solution; cov_x:
     ``(n_x, n_x)`` covariance of all unknowns (µm², prior σ² for ``q``), scaled by
-    ``sigma_scale²``; G: ``∂ĉ/∂q`` ``(len(ic), n_q)``; chi2, dof, edf, sigma_scale."""
+    ``sigma_scale²``; G: ``∂ĉ/∂q`` ``(len(ic), n_q)``; chi2, dof, edf, sigma_scale; floor:
+    the undetermined directions' floor added to the rails' block (:mod:`.bands`)."""
 
     r: np.ndarray
     cov_x: np.ndarray
@@ -36,6 +47,13 @@ class Posterior:
     dof: float
     edf: float
     sigma_scale: float
+    floor: Floor | None = None
+    spread: Spread | None = None
+
+    def notes(self) -> str:
+        """What the bands' floor and spread did, for the fit's message (``""``: nothing)."""
+        parts = [x.note() for x in (self.spread, self.floor) if x is not None]
+        return "".join(f"; bands: {n}" for n in parts if n)
 
 
 def posterior(st: FitState, method: str) -> Posterior:
@@ -63,8 +81,20 @@ def posterior(st: FitState, method: str) -> Posterior:
     cov_x[np.ix_(ic, iq)] = G @ cov_q
     cov_x[np.ix_(iq, ic)] = (G @ cov_q).T
     cov_x[np.ix_(iq, iq)] = cov_q
+    spread = None
+    if method == "lm":  # the model re-linearised across the posterior (:mod:`.spread`)
+        spread = nonlinear_spread(st, sigma_scale)
+        cov_x[np.ix_(ic, ic)] += spread.extra
+        if spread.samples:
+            _log.info("fit: %s", spread.note())
+    nt = p.n_theta
+    floor = undetermined_floor(p.rail_data(J, st.lin[0], x)[0], st.P[:nt, :nt], p.basis, p.Z,
+                               p.Om_curv, p.Om_amp, x[:nt])
+    cov_x[:nt, :nt] += floor.extra
+    if floor.n_directions:
+        _log.info("fit: %s", floor.note())
     return Posterior(r=r, cov_x=cov_x, G=G, chi2=chi2, dof=dof, edf=edf,
-                     sigma_scale=sigma_scale)
+                     sigma_scale=sigma_scale, floor=floor, spread=spread)
 
 
 def structure_sensitivity(st: FitState, x_at, Hc_inv):

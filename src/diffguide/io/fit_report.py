@@ -187,7 +187,8 @@ def undetermined_lines(ident: dict, waviness: float) -> list[str]:
             bands.append(f"{c['combination'].split(' (')[0]} {spans}")
     lines = []
     if bands:
-        lines.append("not determined by the data (there the σ bands are the prior's), "
+        lines.append("not determined by the data (there the σ bands are the prior's, its scale "
+                     "not below a floor between its extrapolation and the visible content's), "
                      "wavelengths in mm: " + "; ".join(bands))
     if waviness == 0.0:
         shortest = min((r["wavelength_mm"] for c in ident["wavelengths"] for r in c["transfer"]),
