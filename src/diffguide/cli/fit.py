@@ -35,6 +35,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "(every input row with fitted and residual, in its unit), layout.csv (the measured "
         "layout, for 'diffguide plan --start'), report.json, report.html (the metrologist's "
         "report: straightness per rail with U, verdict, figures; one self-contained file), "
+        "posterior.json (the posterior, for 'diffguide predict'), "
         "profiles.png, curves.png. Exit codes: 0 converged; 3 results written but the fit did "
         "not converge (flagged in report.json); 2 bad input or options (nothing written).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -400,6 +401,8 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
     """The output folder, staged and renamed into place (figures drawn by the figures'
     process meanwhile): ``(report, names of the files written)``."""
     from ..io.fit_files import fit_csv_text, layout_csv_text, rails_csv_text
+    from ..io.fit_posterior import NAME as POSTERIOR
+    from ..io.fit_posterior import posterior_json_text
     from ..io.fit_report import fit_report
     from ..plotting.render import FigureWorker
     from . import _report
@@ -425,6 +428,9 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
                 files["rails_rigid.csv"] = rails_csv_text(s_m, *profiles["_rigid"])
             files["fit.csv"] = fit_csv_text(meas, fits)
             files["layout.csv"] = layout_csv_text(meas)
+            files[POSTERIOR] = posterior_json_text(  # for diffguide predict
+                elastic, meas, preset=None if args.config else args.preset,
+                config=args.config, nx=args.nx, ny=args.ny, x0_mm=args.x0_mm)
             report["total_seconds"] = time.perf_counter() - t_start
             files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
             staged.write(files)
