@@ -497,15 +497,14 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
     ``--format`` (:func:`diffguide.studies.compensation.fitted_compensation`), written next
     to each other, and a warning per point where a rigid-body compensation would not hold."""
     from ..io.atomic import atomic_write_text
-    from ..studies.compensation import fitted_compensation, fitted_machine
+    from ..studies.compensation import fitted_compensation
 
     points = {k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()}
     points.update(measured_points)  # --at and the counts were checked before the fit
-    machine = fitted_machine(spec, fit, points=points, nx=args.nx, ny=args.ny)
     half = cfg["machine"]["stroke_mm"] / 2
     files, warnings = fitted_compensation(
-        machine, fit, np.linspace(-half, half, args.comp_points), args.at, _export_spec(args),
-        x0_mm=x0_mm,
+        spec, fit, np.linspace(-half, half, args.comp_points), args.at, _export_spec(args),
+        points=points, nx=args.nx, ny=args.ny, x0_mm=x0_mm,
         source=f"predicted by the elastic model fitted to {', '.join(args.measurements)}",
         tol_um=args.tol_um, tol_urad=args.tol_urad)
     base = Path(args.export_compensation)

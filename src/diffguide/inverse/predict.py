@@ -119,12 +119,6 @@ class FitPosterior:
             lead=np.asarray(fit.lead, float), lead_basis=tuple(fit.lead_basis),
             position_range=tuple(map(float, fit.position_range)), rigid=bool(fit.rigid))
 
-    @property
-    def q(self) -> np.ndarray:
-        """The structural unknowns' estimate (prior σ of their log)."""
-        return np.array([np.log(v["value"] / v["prior_value"]) / v["prior_sigma_log"]
-                         for v in self.structure.values()])
-
 
 @dataclasses.dataclass(frozen=True)
 class Prediction:
@@ -254,9 +248,9 @@ def _sweep(post: FitPosterior, machine, x, with_jacobian: bool):
             float(sigma_p))
     if with_jacobian:
         e, J, ok = _errors_and_jacobian(*args)
-        return np.asarray(e), np.asarray(J), bool(ok)
+        return np.array(e), np.asarray(J), bool(ok)
     e, ok = _errors_jit(*args)
-    return np.asarray(e), None, bool(ok)
+    return np.array(e), None, bool(ok)
 
 
 def predict(fit, spec, points, positions, *, measured_points: dict | None = None,
@@ -275,13 +269,18 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
             mesh lines); default none. nx, ny: the fit's mesh (default the spec's).
 
     Returns a :class:`Prediction`. ``ValueError`` for points off the table, positions as
-    above, a name given twice with two locations, or an equilibrium that fails at some
-    position.
+    above or beyond the stroke, a name given twice with two locations, or an equilibrium that
+    fails at some position.
     """
     post = FitPosterior.from_fit(fit)
     pts = _check_points(points, spec)
     x = np.atleast_1d(np.asarray(positions, float))
     flags = check_positions(x, post.position_range, extrapolate)
+    half = float(spec.stroke) / 2
+    if np.any(np.abs(x) > half + _X_TOL):
+        v = float(x[np.abs(x) > half + _X_TOL][0])
+        raise ValueError(f"position {v * 1e3:g} mm is beyond the machine's stroke "
+                         f"(±{half * 1e3:g} mm)")
     allp = dict(_check_points(measured_points, spec)) if measured_points else {}
     for k, v in pts.items():
         if k in allp and not np.allclose(allp[k], v, atol=1e-9):
