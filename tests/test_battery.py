@@ -458,3 +458,17 @@ def test_the_structure_estimate_is_the_minimum_of_its_objective(monkeypatch):
         for b in np.linspace(-3, 3, 7):
             p = np.clip(q + np.array([a, b]) * cond, bounds[:, 0], bounds[:, 1])
             assert score(p) >= f0 - 0.05, (p, score(p), q, f0)
+
+
+# ------------------------------------------------------------------ prediction (issue 28)
+
+
+@pytest.mark.parametrize("name", _params("prediction", CASES))
+def test_prediction_at_unmeasured_points_within_2_sigma(name):
+    """The fit's prediction of the six joint errors at (±300, ±100) mm, where no instrument
+    stood (:func:`battery.cases.prediction_score`): the truth inside ±2σ at >= 85 % of the
+    (position, point, quantity) values."""
+    res = result(name)
+    assert res.fit is not None, res.error
+    sc = cases.prediction_score(name)
+    assert sc.coverage >= 0.85, (sc.coverage, sc.coverage_q, sc.rel_q)

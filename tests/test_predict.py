@@ -88,13 +88,14 @@ def test_sigma_is_the_finite_difference_jacobian_times_the_posterior(fitted, pre
 def test_lead_error_is_in_exx_with_its_sigma(fitted, prediction):
     """A lead spline whose coefficients lie on a line reproduces the line (a cubic B-spline
     property): EXX gains ``a·(x − x_ref)``; a covariance along the line, ``σ_a² g gᵀ``, adds
-    ``σ_a²(x − x_ref)²`` to EXX's variance, a constant one (``11ᵀ``) nothing."""
+    ``σ_a²(x − x_ref)²`` to EXX's variance, a constant one (``σ₀²11ᵀ``, σ₀ = 1 mm: the
+    lead's level, which the channel zero takes) nothing."""
     _, post, meta, spec = fitted
     ls, lh, ln = -0.4, 0.1, 11
     g = ls + (np.arange(ln) - 1.0) * lh  # the knot centres: a line's coefficients
     a, sa = 20e-6, 3e-6  # 20 µm/m, σ 3 µm/m
     nv = post.cov.shape[0]
-    for extra, added in ((sa**2 * np.outer(g, g), (sa * X) ** 2), (np.ones((ln, ln)), 0 * X)):
+    for extra, added in ((sa**2 * np.outer(g, g), (sa * X) ** 2), (1e-6 * np.ones((ln, ln)), 0 * X)):
         cov = np.zeros((nv + ln, nv + ln))
         cov[:nv, :nv] = post.cov
         cov[nv:, nv:] = extra
