@@ -55,6 +55,16 @@ XFAIL: dict[tuple[str, str], str] = {
     "11 %), the other combinations 3-7 %. With the machine that made the data 18 % (17 % at the "
     "hindsight-best prior scale): test_the_15_percent_bound_is_beyond_the_data"
     "; with the planned layout it holds: test_the_15_percent_bound_holds_with_the_planned_layout",
+    ("prediction", "rail_joint_step"): _NOW + "prediction at (±300, ±100) mm: 70 % of the "
+    "values inside ±2σ (EXX 69, EYX 82, EZX 79, EAX 74, EBX 62, ECX 54 %), relative errors "
+    "14-28 %; the profiles' own coverage passes (88-100 %). The 2.5 mm-wide step is content the "
+    "48 mm knot grid cannot hold: the fitted spline rings over about ±150 mm around it, and the "
+    "misses are systematic over those positions (ECX: every point at x = -270 .. +10 mm), "
+    "outside a posterior that knows only the spline's content (bench/battery_predict.py)",
+    ("prediction", "blind_wavelengths"): _NOW + "prediction at (±300, ±100) mm: 84.95 % inside "
+    "±2σ (EBX 56 %, EZX 71 %), relative errors up to 56 % (EYX): the content at the blind "
+    "wavelengths is banded by a prior whose scale the visible content set, as for the profiles "
+    "(the coverage xfail above)",
 }
 
 
