@@ -95,7 +95,8 @@ def test_lead_error_is_in_exx_with_its_sigma(fitted, prediction):
     g = ls + (np.arange(ln) - 1.0) * lh  # the knot centres: a line's coefficients
     a, sa = 20e-6, 3e-6  # 20 µm/m, σ 3 µm/m
     nv = post.cov.shape[0]
-    for extra, added in ((sa**2 * np.outer(g, g), (sa * X) ** 2), (1e-6 * np.ones((ln, ln)), 0 * X)):
+    cases = ((sa**2 * np.outer(g, g), (sa * X) ** 2), (1e-6 * np.ones((ln, ln)), 0 * X))
+    for extra, added in cases:
         cov = np.zeros((nv + ln, nv + ln))
         cov[:nv, :nv] = post.cov
         cov[nv:, nv:] = extra
