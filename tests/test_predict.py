@@ -22,6 +22,7 @@ from diffguide.io.config import default_config, spec_from_config
 from diffguide.io.fit_posterior import read_fit_posterior
 from diffguide.machine.build import build_machine
 from diffguide.machine.kinematics import joint_errors
+from diffguide.studies.compensation import fitted_compensation
 
 X = np.linspace(-0.3, 0.3, 5)  # one shape for every prediction here: one compilation
 Q = {"Q": (0.3, 0.1)}  # no instrument stood there
@@ -108,6 +109,13 @@ def test_lead_error_is_in_exx_with_its_sigma(fitted, prediction):
         np.testing.assert_allclose(pr.sigma[:, 0, 0] ** 2 - prediction.sigma[:, 0, 0] ** 2,
                                    added, rtol=1e-6, atol=1e-20)
         np.testing.assert_allclose(pr.sigma[:, 0, 1:], prediction.sigma[:, 0, 1:], rtol=1e-12)
+    # the compensation export is the same prediction: EXX with the lead, and its σ
+    files, _ = fitted_compensation(spec, lead, X * 1e3, "Q", "csv",
+                                   points={**meta["points_m"], **Q})
+    rows = list(csv.DictReader(ln for ln in files[""].splitlines() if not ln.startswith("#")))
+    for col, want in (("EXX_um", pr.errors), ("EXX_sigma_um", pr.sigma)):
+        np.testing.assert_allclose([float(r[col]) for r in rows], want[:, 0, 0] * 1e6,
+                                   atol=1e-3)
 
 
 def _fitted_curve(out, point, quantity):
