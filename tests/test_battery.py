@@ -65,6 +65,16 @@ XFAIL: dict[tuple[str, str], str] = {
     "steps (16×8 the default)",
     ("combinations", "planned_undetermined"): _NOW + "the two planes' means 23/30 % off: that is "
     "where this case's content at the undetermined wavelengths (285-363 mm) sits",
+    ("prediction", "rail_joint_step"): _NOW + "prediction at (±300, ±100) mm: 70 % of the "
+    "values inside ±2σ (EXX 69, EYX 82, EZX 79, EAX 74, EBX 62, ECX 54 %), relative errors "
+    "14-28 %; the profiles' own coverage passes (88-100 %). The 2.5 mm-wide step is content the "
+    "48 mm knot grid cannot hold: the fitted spline rings over about ±150 mm around it, and the "
+    "misses are systematic over those positions (ECX: every point at x = -270 .. +10 mm), "
+    "outside a posterior that knows only the spline's content (bench/battery_predict.py)",
+    ("prediction", "blind_wavelengths"): _NOW + "prediction at (±300, ±100) mm: 84.95 % inside "
+    "±2σ (EBX 56 %, EZX 71 %), relative errors up to 56 % (EYX): the content at the blind "
+    "wavelengths is banded by a prior whose scale the visible content set, as for the profiles "
+    "(the coverage xfail above)",
 }
 
 
@@ -494,3 +504,15 @@ def test_truth_inside_2_sigma_per_plane(name):
     per_plane = sc.coverage.mean(axis=0)
     assert np.all(per_plane >= 0.85), (per_plane, sc.coverage)
 
+# ------------------------------------------------------------------ prediction (issue 28)
+
+
+@pytest.mark.parametrize("name", _params("prediction", CASES))
+def test_prediction_at_unmeasured_points_within_2_sigma(name):
+    """The fit's prediction of the six joint errors at (±300, ±100) mm, where no instrument
+    stood (:func:`battery.cases.prediction_score`): the truth inside ±2σ at >= 85 % of the
+    (position, point, quantity) values."""
+    res = result(name)
+    assert res.fit is not None, res.error
+    sc = cases.prediction_score(name)
+    assert sc.coverage >= 0.85, (sc.coverage, sc.coverage_q, sc.rel_q)

@@ -702,3 +702,101 @@ def result(name: str) -> CaseResult:
     if name not in _RESULTS:
         _RESULTS[name] = run_case(CASES[name]())
     return _RESULTS[name]
+
+
+# ----------------------------------------------------------------------------- prediction
+
+#: Points where no instrument of any layout stands (mm): the prediction's test points.
+UNMEASURED = {"U1": (300.0, 100.0), "U2": (-300.0, 100.0), "U3": (-300.0, -100.0),
+              "U4": (300.0, -100.0)}
+
+
+class _GaugeFixed(AbstractRailProfile):
+    """A truth rail less the common slope per plane the fit's gauge removes (m/m)."""
+
+    rail: AbstractRailProfile
+    slope_h: float
+    slope_v: float
+
+    def __call__(self, s):
+        h, v = self.rail(s)
+        return h - self.slope_h * s, v - self.slope_v * s
+
+
+def gauge_fixed_truth_rails(case: Case, fit) -> tuple:
+    """The truth rails with the common slope of each plane removed as
+    ``RailBasis.gauge_fix`` removes it over the fit's knot range (offsets do not change the
+    errors relative to the reference position)."""
+    s = np.linspace(fit.basis.start, fit.basis.end, 801)
+    e = truth_profiles(case, s)  # (2, 2, n): planes (vertical, horizontal)
+    sc = s - s.mean()
+    slope = [np.mean([sc @ (e[r, p] - e[r, p].mean()) / (sc @ sc) for r in range(2)])
+             for p in range(2)]
+    return tuple(_GaugeFixed(rail, float(slope[1]), float(slope[0]))
+                 for rail in truth_rails(case))
+
+
+def truth_at_unmeasured(case: Case, fit) -> np.ndarray:
+    """The truth's errors at :data:`UNMEASURED` over the case's positions ``(n_pos, 4, 6)``
+    (m, rad) on the truth machine, in the fit's gauge; EXX with the case's lead error
+    (relative to x = 0, as the errors)."""
+    from diffguide.machine.kinematics import joint_errors
+    from diffguide.machine.majda2012 import majda2012_machine
+
+    pts = {k: (x * 1e-3, y * 1e-3) for k, (x, y) in UNMEASURED.items()}
+    key = ("truth", case.thickness, case.preload, _points_key(pts))
+    if key not in _MACHINES:
+        _MACHINES[key] = majda2012_machine(nx=TRUTH_MESH[0], ny=TRUTH_MESH[1],
+                                           thickness=case.thickness,
+                                           preload_fraction=case.preload, points=pts)
+    x_mm = case.positions_mm()
+    je = joint_errors(_MACHINES[key], gauge_fixed_truth_rails(case, fit), x_mm * 1e-3)
+    e = np.array(je.errors)
+    if case.lead_um is not None:
+        e[:, :, 0] += (case.lead_um(x_mm) - case.lead_um(0.0))[:, None] * 1e-6
+    return e
+
+
+@dataclasses.dataclass
+class PredictionScore:
+    """The fit's prediction at :data:`UNMEASURED` against the truth, over the case's positions:
+    ``coverage`` the fraction of (position, point, quantity) inside ±2σ; per quantity (EXX …
+    ECX) ``coverage_q``, ``rel_q`` the RMS error over the truth's RMS (points and positions
+    together), ``rms_um`` the RMS error (µm, µrad), ``sigma_um`` the RMS σ; ``seconds``."""
+
+    coverage: float
+    coverage_q: np.ndarray
+    rel_q: np.ndarray
+    rms_um: np.ndarray
+    sigma_um: np.ndarray
+    seconds: float
+
+
+_PREDICTIONS: dict = {}
+
+
+def prediction_score(name: str) -> PredictionScore:
+    """Case ``name``'s fit (:func:`result`) predicting at :data:`UNMEASURED`
+    (:func:`diffguide.inverse.predict.predict`) scored against :func:`truth_at_unmeasured`;
+    once per process."""
+    from diffguide.inverse.predict import predict
+    from diffguide.machine.majda2012 import majda2012_spec
+
+    if name not in _PREDICTIONS:
+        res = result(name)
+        case, fit = res.case, res.fit
+        t0 = time.perf_counter()
+        pts = {k: (x * 1e-3, y * 1e-3) for k, (x, y) in UNMEASURED.items()}
+        pr = predict(fit, majda2012_spec(), pts, case.positions_mm() * 1e-3,
+                     measured_points=case.points())
+        seconds = time.perf_counter() - t0
+        truth = truth_at_unmeasured(case, fit)
+        err, sig = (pr.errors - truth) * 1e6, pr.sigma * 1e6
+        inside = np.abs(err) <= 2 * sig
+        _PREDICTIONS[name] = PredictionScore(
+            coverage=float(inside.mean()), coverage_q=inside.mean(axis=(0, 1)),
+            rel_q=np.sqrt(np.mean(err**2, axis=(0, 1)) / np.mean((truth * 1e6) ** 2,
+                                                                  axis=(0, 1))),
+            rms_um=np.sqrt(np.mean(err**2, axis=(0, 1))),
+            sigma_um=np.sqrt(np.mean(sig**2, axis=(0, 1))), seconds=seconds)
+    return _PREDICTIONS[name]

@@ -36,6 +36,7 @@ _COMMANDS = {
     "fit": "fit",
     "montecarlo": "montecarlo",
     "plan": "plan",
+    "predict": "predict",
 }
 
 

@@ -13,6 +13,7 @@ OUTPUT_FILES = {
     "simulate": ("out", "plot", "export_compensation", "field_plot"),
     "montecarlo": ("out", "plot"),
     "fit": ("export_compensation",),
+    "predict": ("out",),
 }
 #: command -> the destinations of its output folders (replaced whole)
 OUTPUT_DIRS = {"fit": ("out",), "plan": ("out",)}

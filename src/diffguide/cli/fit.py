@@ -35,6 +35,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "(every input row with fitted and residual, in its unit), layout.csv (the measured "
         "layout, for 'diffguide plan --start'), report.json, report.html (the metrologist's "
         "report: straightness per rail with U, verdict, figures; one self-contained file), "
+        "posterior.json (the posterior, for 'diffguide predict'), "
         "profiles.png, curves.png. Exit codes: 0 converged; 3 results written but the fit did "
         "not converge (flagged in report.json); 2 bad input or options (nothing written).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -400,6 +401,8 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
     """The output folder, staged and renamed into place (figures drawn by the figures'
     process meanwhile): ``(report, names of the files written)``."""
     from ..io.fit_files import fit_csv_text, layout_csv_text, rails_csv_text
+    from ..io.fit_posterior import NAME as POSTERIOR
+    from ..io.fit_posterior import posterior_json_text
     from ..io.fit_report import fit_report
     from ..plotting.render import FigureWorker
     from . import _report
@@ -425,6 +428,10 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
                 files["rails_rigid.csv"] = rails_csv_text(s_m, *profiles["_rigid"])
             files["fit.csv"] = fit_csv_text(meas, fits)
             files["layout.csv"] = layout_csv_text(meas)
+            files[POSTERIOR] = posterior_json_text(  # for diffguide predict
+                elastic, meas, preset=None if args.config else args.preset,
+                config=args.config, nx=args.nx, ny=args.ny,
+                x0_mm=_machine_x0(args, getattr(args, "input_info", {})))
             report["total_seconds"] = time.perf_counter() - t_start
             files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
             staged.write(files)
@@ -491,15 +498,14 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
     ``--format`` (:func:`diffguide.studies.compensation.fitted_compensation`), written next
     to each other, and a warning per point where a rigid-body compensation would not hold."""
     from ..io.atomic import atomic_write_text
-    from ..studies.compensation import fitted_compensation, fitted_machine
+    from ..studies.compensation import fitted_compensation
 
     points = {k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()}
     points.update(measured_points)  # --at and the counts were checked before the fit
-    machine = fitted_machine(spec, fit, points=points, nx=args.nx, ny=args.ny)
     half = cfg["machine"]["stroke_mm"] / 2
     files, warnings = fitted_compensation(
-        machine, fit, np.linspace(-half, half, args.comp_points), args.at, _export_spec(args),
-        x0_mm=x0_mm,
+        spec, fit, np.linspace(-half, half, args.comp_points), args.at, _export_spec(args),
+        points=points, nx=args.nx, ny=args.ny, x0_mm=x0_mm,
         source=f"predicted by the elastic model fitted to {', '.join(args.measurements)}",
         tol_um=args.tol_um, tol_urad=args.tol_urad)
     base = Path(args.export_compensation)

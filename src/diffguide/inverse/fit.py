@@ -141,6 +141,10 @@ class RailFit(eqx.Module):
             coefficients move (m) per prior σ of each structural unknown (its log), ``(2 rails,
             2 planes, n, n_q)``; structure_cov: ``Cov q`` in the same units ``(n_q, n_q)``
             (empty without structural unknowns).
+            posterior_cov: the full posterior covariance of ``v = (c, q, ℓ)`` — every rail
+            coefficient (m), the structural unknowns (prior σ), the lead and alignment
+            nuisances (m) — cross terms included (:mod:`.predict`). position_range: the
+            measured table positions' ``(min, max)`` (m).
     """
 
     basis: RailBasis
@@ -176,6 +180,8 @@ class RailFit(eqx.Module):
     alignment_channels: tuple[int, ...] = eqx.field(static=True, default=())
     structure_sensitivity: np.ndarray = eqx.field(default_factory=lambda: np.zeros(0))
     structure_cov: np.ndarray = eqx.field(default_factory=lambda: np.zeros((0, 0)))
+    posterior_cov: np.ndarray = eqx.field(default_factory=lambda: np.zeros((0, 0)))
+    position_range: tuple = eqx.field(static=True, default=())
 
     @property
     def chi2_dof(self) -> float:
@@ -214,6 +220,16 @@ class RailFit(eqx.Module):
             sig[r, p] = np.sqrt(np.maximum(np.einsum("sk,kl,sl->s", B, C, B), 0.0)
                                 + self.waviness**2)
         return val.reshape((2, 2) + shape), sig.reshape((2, 2) + shape)
+
+    def predict(self, spec, points, positions, **kw):
+        """The six joint errors, with σ from the full posterior, at ``points`` ``{name: (x,
+        y)}`` (m) over table ``positions`` (m) of the machine ``spec`` (a
+        :class:`~diffguide.machine.spec.MachineSpec`, the one fitted): EXX includes the fitted
+        lead error; positions outside the measured range are refused unless
+        ``extrapolate=True``. Keywords and returns: :func:`.predict.predict`."""
+        from .predict import predict
+
+        return predict(self, spec, points, positions, **kw)
 
     def rails(self) -> tuple[SplineRail, SplineRail]:
         """The fitted profiles as :class:`~diffguide.rails.SplineRail` (rail 1, rail 2)."""
@@ -362,7 +378,15 @@ def report_fit(st: FitState, post: Posterior, method: str, waviness: float) -> R
         rigid=bool(p.family.base.rigid), waviness=float(waviness),
         structure_sensitivity=(p.Z @ post.G[:n_theta] * _UM).reshape(2, 2, n_c, n_q),
         structure_cov=np.asarray(st.cov_q, float).reshape(n_q, n_q),
+        posterior_cov=_v_covariance(p, post.cov_x),
+        position_range=(float(np.min(p.meas.position)), float(np.max(p.meas.position))),
     )
+
+
+def _v_covariance(p: FitProblem, cov_x) -> np.ndarray:
+    """``Cov v`` of ``v = Mx = (c, q, ℓ)``: c and ℓ in m, q in prior σ."""
+    u = np.concatenate([np.full(p.basis.size, _UM), np.ones(p.n_q), np.full(p.n_l, _UM)])
+    return u[:, None] * (p.M @ cov_x @ p.M.T) * u[None, :]
 
 
 def _residuals(p: FitProblem, r, pred, method: str):

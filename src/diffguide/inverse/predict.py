@@ -1,34 +1,332 @@
-r"""Prediction from a fit: the σ of the joint errors a fitted model predicts.
+r"""Prediction from a fit: the six joint errors at any points of the table over any positions,
+with σ from the fit's full posterior.
 
-.. math::  σ_e(x) = \sqrt{\mathrm{diag}\bigl(J(x)\,\mathrm{Cov}\,c\,J(x)ᵀ\bigr)},\qquad
-           J = ∂E(x)/∂c,
+The fitted model's unknowns ``v = (c, q, ℓ)`` — every rail coefficient ``c`` (m), the structural
+unknowns ``q`` (table thickness and preload, in prior σ of their log) and the nuisances ``ℓ``
+(the feed screw's lead error, m, and each straightness channel's alignment slope) — have the
+posterior mean ``v̂`` and covariance ``Cov v`` (:attr:`.fit.RailFit.posterior_cov`, cross terms
+included). At table position ``x`` and point ``P``
 
-``c`` the fitted rails' spline coefficients (m) with their posterior covariance
-(:attr:`.fit.RailFit.cov`, the structure's uncertainty carried in), ``E`` the machine's joint
-errors (m, rad).
+.. math::  e(x) = E_P(x; c, q) + [\mathrm{EXX}]\bigl(ℓ(x) − ℓ(x_{ref})\bigr),\qquad
+           σ_e(x) = \sqrt{\mathrm{diag}\bigl(J\,\mathrm{Cov}\,v\,Jᵀ\bigr)},\quad J = ∂e/∂v,
+
+``E`` the machine's joint errors relative to the reference position ``x_ref``
+(:func:`~diffguide.machine.kinematics.joint_errors`, ISO 230-1 signs), ``ℓ`` the fitted lead
+spline: EXX *includes* the lead error the positioning data showed (a compensation table's EXX
+must), extrapolated as a constant-free cubic outside the EXX data's range. The alignment slopes
+belong to the instruments, not to the machine: they enter ``σ`` only through their correlation
+with the rest (``J`` is zero in them). Straightness (EYX, EZX) is in the fit's gauge: the common
+slope of both rails in each plane, which no reading determines, fixed as in the fit
+(:mod:`.basis`); the linear part of a straightness curve is a matter of its reference line.
+
+``J`` in ``c`` and in the preload: one forward-mode pass through the implicit equilibria (the
+preload scales ``Carriage.preload_force``, as in :class:`.structure.MachineFamily`). ``J`` in
+the thickness: a secant over ``±h`` (``h`` its posterior σ within
+:data:`~.posterior.SECANT_STEP_LIMITS`, as the fit's own structure sensitivity), the table
+condensed at ``t̂·e^{±hσ_t}``.
+
+**The machine.** The fit's machine family interpolates the condensed table's point-recovery rows
+between thickness nodes only for the measured points (its node modes stay at the prior
+thickness), and a point puts mesh lines through itself: a new point therefore needs the table
+condensed again with the point in its mesh. :func:`predict` builds the machine of the fitted
+structure with the measured points and the requested ones (the fit's mesh plus the new
+points' lines; the fit's mesh itself when every requested point was measured) and keeps it
+(:data:`MACHINE_CACHE_SIZE` most recent) for the next call.
+
+**Extrapolation.** Positions outside the measured range are refused (``ValueError`` naming the
+range) unless ``extrapolate=True``; then the rails' and lead's end cubics are continued and the
+σ is what that continuation's covariance gives (large, and growing with the distance), each such
+position flagged.
 """
 
+import dataclasses
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..guideway.rails import SplineRail
-from ..machine.kinematics import joint_errors
+from .._core.checks import mm_hint
+from ..guideway.rails import SplineRail, bspline_matrix
+from ..machine.build import build_machine
+from ..machine.errors import to_user
+from ..machine.kinematics import ERROR_NAMES, POSITION_RANGE, joint_errors_traced
+from .posterior import SECANT_STEP_LIMITS
+
+#: Machines kept by :func:`predict` (each a condensation of the table; ~1 s for ``majda2012``).
+MACHINE_CACHE_SIZE = 8
+#: A position this far (m) outside the measured range still counts as inside (round-off).
+_X_TOL = 1e-9
+_EXX = ERROR_NAMES.index("EXX")
 
 
-def error_sigma(machine, fit, x, point: int) -> np.ndarray:
-    """σ of the joint errors at point index ``point`` (m, rad), ``(n_pos, 6)``, at table
-    positions ``x`` (m): the rails' posterior covariance pushed through the model's Jacobian
-    (one forward-mode pass over the spline coefficients; the structure's own uncertainty enters
-    only through the rails' covariance). ``machine`` is the machine the fit describes (its
-    fitted structure); ``fit`` a :class:`~.fit.RailFit`."""
-    n = fit.basis.n_coeffs
-    start, spacing = fit.basis.start, fit.basis.spacing
+@dataclasses.dataclass(frozen=True)
+class FitPosterior:
+    """What a prediction needs from a fit (SI): built from a :class:`~.fit.RailFit`
+    (:meth:`from_fit`) or read back from a fit's output folder
+    (:mod:`diffguide.io.fit_posterior`).
 
-    def errors(c):
-        c = c.reshape(2, 2, n)
-        rails = tuple(SplineRail(start, spacing, c[r, 0], c[r, 1]) for r in range(2))
-        return joint_errors(machine, rails, x).errors[:, point, :]
+    Attributes:
+        start, spacing, n_coeffs: the rails' knot grid (m). coeffs: ``(2 rails, 2 planes, n)``
+            spline coefficients (m), planes (vertical, horizontal). cov: ``Cov v`` of
+            ``v = (c, q, ℓ)`` (c, ℓ in m; q in prior σ). structure: per structural unknown,
+            in the fit's order, ``{value, prior_value, prior_sigma_log}`` (thickness in m,
+            preload a fraction of C). lead: the lead-error coefficients (m), on lead_basis
+            ``(start, spacing, n)`` (m) or ``()``. position_range: the measured positions'
+            ``(min, max)`` (m). rigid: fitted with the rigid-table model. x_ref: the reference
+            position (m).
+    """
 
-    J = np.asarray(jax.jacfwd(errors)(jnp.asarray(np.asarray(fit.coeffs).reshape(-1))))
-    return np.sqrt(np.maximum(np.einsum("pek,kl,pel->pe", J, np.asarray(fit.cov), J), 0.0))
+    start: float
+    spacing: float
+    n_coeffs: int
+    coeffs: np.ndarray
+    cov: np.ndarray
+    structure: dict
+    lead: np.ndarray
+    lead_basis: tuple
+    position_range: tuple
+    rigid: bool = False
+    x_ref: float = 0.0
+
+    def __post_init__(self):
+        n_v = 4 * self.n_coeffs + len(self.structure) + len(self.lead)
+        if np.shape(self.coeffs) != (2, 2, self.n_coeffs):
+            raise ValueError(f"coeffs must have shape (2, 2, {self.n_coeffs}), got "
+                             f"{np.shape(self.coeffs)}")
+        if np.ndim(self.cov) != 2 or np.shape(self.cov)[0] != np.shape(self.cov)[1] \
+                or np.shape(self.cov)[0] < n_v:
+            raise ValueError(f"cov must be square and cover the {n_v} rail, structure and "
+                             f"lead unknowns, got shape {np.shape(self.cov)}")
+        if len(self.position_range) != 2:
+            raise ValueError("position_range must be (min, max) of the measured positions (m)")
+
+    @classmethod
+    def from_fit(cls, fit) -> "FitPosterior":
+        """The posterior of a :class:`~.fit.RailFit` (one made before ``posterior_cov``
+        existed is refused: fit again)."""
+        if isinstance(fit, cls):
+            return fit
+        if np.size(fit.posterior_cov) == 0 or len(fit.position_range) != 2:
+            raise ValueError("the fit has no full posterior (posterior_cov): fit again with "
+                             "this version of diffguide")
+        keys = ("value", "prior_value", "prior_sigma_log")
+        return cls(
+            start=float(fit.basis.start), spacing=float(fit.basis.spacing),
+            n_coeffs=int(fit.basis.n_coeffs), coeffs=np.asarray(fit.coeffs, float),
+            cov=np.asarray(fit.posterior_cov, float),
+            structure={n: {k: float(v[k]) for k in keys} for n, v in fit.structure.items()},
+            lead=np.asarray(fit.lead, float), lead_basis=tuple(fit.lead_basis),
+            position_range=tuple(map(float, fit.position_range)), rigid=bool(fit.rigid))
+
+
+@dataclasses.dataclass(frozen=True)
+class Prediction:
+    """What :func:`predict` returns (SI).
+
+    Attributes:
+        positions: ``(n_pos,)`` table positions (m). point_names, points_xy: the points
+            ``(n_pt, 2)`` (m). errors, sigma: ``(n_pos, n_pt, 6)``, EXX EYX EZX (m), EAX EBX
+            ECX (rad), ISO 230-1 signs, relative to ``x_ref``; EXX includes the fitted lead
+            error where ``lead`` is True. extrapolated: ``(n_pos,)`` outside the measured
+            range. position_range: that range (m). lead: whether a lead error was fitted (EXX
+            data) and is included. x_ref: the reference position (m).
+    """
+
+    positions: np.ndarray
+    point_names: tuple
+    points_xy: np.ndarray
+    errors: np.ndarray
+    sigma: np.ndarray
+    extrapolated: np.ndarray
+    position_range: tuple
+    lead: bool
+    x_ref: float
+
+    def user_units(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(errors, sigma)`` in µm and µrad (:func:`diffguide.machine.errors.to_user`)."""
+        return to_user(self.errors), to_user(self.sigma)
+
+
+def check_positions(positions, position_range, extrapolate: bool) -> np.ndarray:
+    """``positions`` (m) as a 1-D array; refused (``ValueError``) when not finite, outside
+    :data:`~diffguide.machine.kinematics.POSITION_RANGE`, or — unless ``extrapolate`` —
+    outside the measured ``position_range`` (m). Returns the extrapolated flags."""
+    x = np.atleast_1d(np.asarray(positions, float))
+    if x.ndim != 1 or x.size == 0:
+        raise ValueError(f"positions must be a non-empty 1-D array (m), got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"positions must be finite (m); they hold {x[~np.isfinite(x)][:3]}")
+    lo, hi = POSITION_RANGE
+    if np.any((x < lo) | (x > hi)):
+        v = float(x[(x < lo) | (x > hi)][0])
+        raise ValueError(f"positions must lie within [{lo:g}, {hi:g}] m, got {v:g} m"
+                         f"{mm_hint(v, lo, hi)}")
+    a, b = position_range
+    out = (x < a - _X_TOL) | (x > b + _X_TOL)
+    if out.any() and not extrapolate:
+        v = float(x[out][0])
+        raise ValueError(
+            f"position {v * 1e3:g} mm is outside the measured range [{a * 1e3:g}, "
+            f"{b * 1e3:g}] mm: the data say nothing there (extrapolate=True / --extrapolate "
+            "continues the fitted curves, flagged, with their large σ)")
+    return out
+
+
+def _check_points(points, spec) -> dict:
+    """``points`` ``{name: (x, y)}`` (m) checked: finite, on the table top."""
+    if not isinstance(points, dict) or not points:
+        raise ValueError("points must be a non-empty dict {name: (x, y)} (m)")
+    half_l, half_w = spec.table.length / 2, spec.table.width / 2
+    out = {}
+    for name, xy in points.items():
+        x, y = (float(v) for v in xy)
+        if not (np.isfinite(x) and np.isfinite(y)) or abs(x) > half_l + 1e-12 \
+                or abs(y) > half_w + 1e-12:
+            raise ValueError(
+                f"point {name!r} at ({x * 1e3:g}, {y * 1e3:g}) mm is off the table (|x| <= "
+                f"{half_l * 1e3:g}, |y| <= {half_w * 1e3:g} mm)")
+        out[str(name)] = (x, y)
+    return out
+
+
+_MACHINES: dict = {}
+
+
+def _machine(spec, points: dict, nx, ny, structure: dict, log_t_shift: float = 0.0):
+    """The machine of ``spec`` at the fitted structure (the thickness times ``e^shift``) with
+    ``points`` (m); kept in :data:`_MACHINES` (the last :data:`MACHINE_CACHE_SIZE`)."""
+    kw = {}
+    if "thickness" in structure:
+        kw["thickness"] = structure["thickness"]["value"] * float(np.exp(log_t_shift))
+    if "preload" in structure:
+        kw["preload_fraction"] = structure["preload"]["value"]
+    key = (id(spec), nx, ny, tuple((k, *v) for k, v in points.items()),
+           tuple(sorted(kw.items())))
+    if key not in _MACHINES:
+        while len(_MACHINES) >= MACHINE_CACHE_SIZE:
+            _MACHINES.pop(next(iter(_MACHINES)))
+        _MACHINES[key] = (spec, build_machine(spec, nx=nx, ny=ny, points=points, **kw))
+    return _MACHINES[key][1]
+
+
+def _errors_traced(c, dq_p, machine, positions, x_ref, start, spacing, n, sigma_p):
+    """Joint errors (m, rad) at every point for rail coefficients ``c`` (m, flat) and the
+    preload moved by ``dq_p`` prior σ of its log; and whether every equilibrium converged."""
+    m = eqx.tree_at(lambda mm: mm.carriage.preload_force, machine,
+                    machine.carriage.preload_force * jnp.exp(sigma_p * dq_p))
+    c = c.reshape(2, 2, n)
+    rails = tuple(SplineRail(start, spacing, c[r, 0], c[r, 1]) for r in range(2))
+    je = joint_errors_traced(m, rails, positions, x_ref)
+    return je.errors, jnp.all(je.converged)
+
+
+_errors_jit = eqx.filter_jit(_errors_traced)
+
+
+@eqx.filter_jit
+def _errors_and_jacobian(c, dq_p, machine, positions, x_ref, start, spacing, n, sigma_p):
+    """Errors ``(n_pos, n_pt, 6)``, their Jacobian in ``(c, dq_p)`` ``(..., 4n + 1)``, and
+    convergence."""
+    def f(t):
+        e, ok = _errors_traced(t[:-1], t[-1], machine, positions, x_ref, start, spacing, n,
+                               sigma_p)
+        return e, (e, ok)
+
+    J, (e, ok) = jax.jacfwd(f, has_aux=True)(jnp.concatenate([c, jnp.zeros(1) + dq_p]))
+    return e, J, ok
+
+
+def _sweep(post: FitPosterior, machine, x, with_jacobian: bool):
+    """Errors (and the Jacobian in ``(c, preload)``) of ``machine`` over ``x`` (m)."""
+    names = list(post.structure)
+    sigma_p = post.structure["preload"]["prior_sigma_log"] if "preload" in names else 0.0
+    if post.rigid:
+        machine = machine.with_rigid_table()
+    args = (jnp.asarray(post.coeffs.reshape(-1)), 0.0, machine, jnp.asarray(x),
+            jnp.asarray(float(post.x_ref)), post.start, post.spacing, post.n_coeffs,
+            float(sigma_p))
+    if with_jacobian:
+        e, J, ok = _errors_and_jacobian(*args)
+        return np.array(e), np.asarray(J), bool(ok)
+    e, ok = _errors_jit(*args)
+    return np.array(e), None, bool(ok)
+
+
+def predict(fit, spec, points, positions, *, measured_points: dict | None = None,
+            nx: int | None = None, ny: int | None = None,
+            extrapolate: bool = False) -> Prediction:
+    """The six joint errors and their σ at ``points`` over ``positions`` (module docstring).
+
+    Arguments:
+        fit: a :class:`~.fit.RailFit` or a :class:`FitPosterior`.
+        spec: the fitted machine's :class:`~diffguide.machine.spec.MachineSpec` (SI), at its
+            configured structure (the fitted thickness and preload replace it).
+        points: ``{name: (x, y)}`` (m) on the table top.
+        positions: table positions (m), 1-D; outside the measured range only with
+            ``extrapolate`` (then flagged).
+        measured_points: the fit's points ``{name: (x, y)}`` (m), kept in the mesh (the fit's
+            mesh lines); default none. nx, ny: the fit's mesh (default the spec's).
+
+    Returns a :class:`Prediction`. ``ValueError`` for points off the table, positions as
+    above or beyond the stroke, a name given twice with two locations, or an equilibrium that
+    fails at some position.
+    """
+    post = FitPosterior.from_fit(fit)
+    pts = _check_points(points, spec)
+    x = np.atleast_1d(np.asarray(positions, float))
+    flags = check_positions(x, post.position_range, extrapolate)
+    half = float(spec.stroke) / 2
+    if np.any(np.abs(x) > half + _X_TOL):
+        v = float(x[np.abs(x) > half + _X_TOL][0])
+        raise ValueError(f"position {v * 1e3:g} mm is beyond the machine's stroke "
+                         f"(±{half * 1e3:g} mm)")
+    allp = dict(_check_points(measured_points, spec)) if measured_points else {}
+    for k, v in pts.items():
+        if k in allp and not np.allclose(allp[k], v, atol=1e-9):
+            raise ValueError(f"point {k!r} is a measured point at ({allp[k][0] * 1e3:g}, "
+                             f"{allp[k][1] * 1e3:g}) mm: give the new point another name")
+        allp[k] = v
+    machine = _machine(spec, allp, nx, ny, post.structure)
+    sel = [list(allp).index(k) for k in pts]
+    e, Jm, ok = _sweep(post, machine, x, True)
+    if not ok:
+        raise ValueError("the fitted model's equilibrium did not converge at some position; "
+                         "no prediction")
+    n_c, names = 4 * post.n_coeffs, list(post.structure)
+    n_v = post.cov.shape[0]
+    J = np.zeros(e.shape + (n_v,))
+    J[..., :n_c] = Jm[..., :n_c]
+    if "preload" in names:
+        J[..., n_c + names.index("preload")] = Jm[..., n_c]
+    if "thickness" in names and not post.rigid:
+        i = names.index("thickness")
+        J[..., n_c + i] = _thickness_column(post, spec, allp, nx, ny, x, i)
+    if len(post.lead):
+        lo = n_c + len(names)
+        ls, lh, ln = post.lead_basis
+        B = bspline_matrix(x, ls, lh, ln) - bspline_matrix(np.array([post.x_ref]), ls, lh, ln)
+        e[:, :, _EXX] += (B @ post.lead)[:, None]
+        J[:, :, _EXX, lo:lo + ln] = B[:, None, :]
+    sig = np.sqrt(np.maximum(np.einsum("pekv,vw,pekw->pek", J, post.cov, J), 0.0))
+    return Prediction(positions=x, point_names=tuple(pts), points_xy=np.array(list(pts.values())),
+                      errors=e[:, sel], sigma=sig[:, sel], extrapolated=flags,
+                      position_range=tuple(post.position_range), lead=bool(len(post.lead)),
+                      x_ref=float(post.x_ref))
+
+
+def _thickness_column(post: FitPosterior, spec, allp, nx, ny, x, i) -> np.ndarray:
+    """``∂e/∂q_t`` (per prior σ of ln t): a secant over ``±h`` prior σ (module docstring)."""
+    s = post.structure["thickness"]["prior_sigma_log"]
+    nq = len(post.structure)
+    cov_q = post.cov[4 * post.n_coeffs:4 * post.n_coeffs + nq, 4 * post.n_coeffs + i]
+    h = float(np.clip(np.sqrt(max(cov_q[i], 0.0)), *SECANT_STEP_LIMITS))
+    out = []
+    for sign in (-1.0, 1.0):
+        m = _machine(spec, allp, nx, ny, post.structure, sign * h * s)
+        e, _, ok = _sweep(post, m, x, False)
+        if not ok:
+            raise ValueError("the fitted model's equilibrium did not converge at the thickness "
+                             "± its σ; no prediction")
+        out.append(e)
+    return (out[1] - out[0]) / (2 * h)

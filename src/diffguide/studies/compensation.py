@@ -108,37 +108,43 @@ def fitted_machine(spec, fit, *, points: dict, nx: int | None = None, ny: int | 
     return build_machine(spec, nx=nx, ny=ny, points=points, **kw)
 
 
-def fitted_compensation(machine, fit, x_mm, at: str, fmt: str, *, x0_mm: float = 0.0,
+def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
+                        nx: int | None = None, ny: int | None = None, x0_mm: float = 0.0,
                         source: str = "", tol_um: float = 2.0,
                         tol_urad: float = 5.0) -> tuple[dict[str, str], list[str]]:
-    """A compensation export of the errors a fitted model predicts at point ``at``.
+    """A compensation export of the errors a fitted model predicts at point ``at``, with σ.
 
     Arguments:
-        machine: the fitted machine (:func:`fitted_machine`). fit: its
-            :class:`~diffguide.inverse.RailFit`. x_mm: table positions (mm, x = 0 the reference
-            position). at: the point. fmt: a :data:`~.exports.FORMATS` name. x0_mm: the
-            machine coordinate (mm) of x = 0. source: a line for the header. tol_um, tol_urad:
-            the tolerances of :func:`location_warnings` (µm, µrad).
+        spec: the fitted machine's :class:`~diffguide.machine.spec.MachineSpec` (the fitted
+            structure replaces its own). fit: the :class:`~diffguide.inverse.RailFit`.
+            x_mm: table positions (mm, x = 0 the reference position); positions outside the
+            measured range are extrapolated (their σ says how little the data hold there).
+            at: the point. fmt: a :data:`~.exports.FORMATS` name or an
+            :class:`~.exports.ExportSpec`. points: ``{name: (x, y)}``
+            (m), ``at`` among them, the fit's measured points included (their mesh lines).
+            nx, ny: the fit's mesh. x0_mm: the machine coordinate (mm) of x = 0. source: a
+            line for the header. tol_um, tol_urad: the tolerances of
+            :func:`location_warnings` (µm, µrad).
 
-    Returns ``({suffix: text}, warnings)``: :func:`~.exports.export_compensation`'s files, with
-    σ from the fit's posterior (:func:`~diffguide.inverse.predict.error_sigma`), and one warning
-    per point where a rigid-body compensation made at ``at`` would not hold. ``ValueError``
-    when an equilibrium over the stroke does not converge.
+    Returns ``({suffix: text}, warnings)``: :func:`~.exports.export_compensation`'s files —
+    the errors and σ of :func:`diffguide.inverse.predict.predict`, the prediction with σ from
+    the fit's full posterior (rails, structure, lead and alignment nuisances), EXX including the
+    fitted lead error — and one warning per point where a rigid-body compensation made at ``at``
+    would not hold. ``ValueError`` when an equilibrium over the stroke does not converge.
     """
-    from ..inverse.predict import error_sigma
-    from ..machine.kinematics import joint_errors
+    from ..inverse.predict import predict
     from .exports import export_compensation
 
     x_mm = np.asarray(x_mm, float)
-    je = joint_errors(machine, fit.rails(), x_mm * 1e-3)
-    if not bool(np.all(np.asarray(je.converged))):
-        raise ValueError("the equilibrium of the fitted model did not converge over the stroke; "
-                         "no compensation table written")
-    j = list(je.point_names).index(at)
-    errs = je.user_units()
-    sigma = error_sigma(machine, fit, x_mm * 1e-3, j)
-    files = export_compensation(fmt, x_mm, np.asarray(je.errors)[:, j, :], sigma, x0_mm=x0_mm,
-                                point=at, source=source)
-    warnings = location_warnings(errs, je.point_names, np.asarray(je.points_xy), at, tol_um,
-                                 tol_urad)
+    if at not in points:
+        raise ValueError(f"--at must be one of the points {', '.join(points)}, got {at!r}")
+    pred = predict(fit, spec, points, x_mm * 1e-3, nx=nx, ny=ny, extrapolate=True)
+    j = list(pred.point_names).index(at)
+    errs, _ = pred.user_units()
+    # EXX holds the fitted lead error where EXX data were fitted; without them the lead is
+    # unknown and EXX is left out of the table (exports' rule)
+    files = export_compensation(fmt, x_mm, pred.errors[:, j, :], pred.sigma[:, j, :],
+                                x0_mm=x0_mm, point=at, source=source,
+                                exx_includes_lead=True if pred.lead else None)
+    warnings = location_warnings(errs, pred.point_names, pred.points_xy, at, tol_um, tol_urad)
     return files, warnings

@@ -1,0 +1,131 @@
+"""``diffguide predict``: the joint errors, with σ, at any points of the table from a fit."""
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ._common import say
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "predict",
+        help="joint errors (µm, µrad) with σ at any points of the table, from a fit's output",
+        description="Predict the six joint errors of the X axis (EXX EYX EZX in µm, EAX EBX ECX "
+        "in µrad) at points of the table where no instrument stood - the tool's point, a "
+        "fixture - over table positions, from the rails AND the structure (thickness, preload) "
+        "a 'diffguide fit --out DIR' estimated, with 1σ from the fit's full posterior (rails, "
+        "structure, lead and alignment nuisances). EXX includes the fitted lead (feed-screw) "
+        "error when the data held EXX. Positions outside the measured range are refused "
+        "unless --extrapolate (then flagged, with their large σ). The table is condensed again "
+        "with the new points in its mesh (about a second per structure value; three with the "
+        "thickness estimated). Output CSV (written atomically): position_mm,point,x_mm,y_mm, "
+        "EXX_um..ECX_urad, EXX_sigma_um..ECX_sigma_urad, extrapolated.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--fit", required=True, metavar="DIR",
+                   help="a 'diffguide fit --out' folder (its posterior.json)")
+    p.add_argument("--point", action="append", default=[], metavar="NAME:X_MM,Y_MM",
+                   help="a point on the table top (mm; repeatable), e.g. Q1:300,-100")
+    p.add_argument("--points", metavar="FILE.csv",
+                   help="points file: point,x_mm,y_mm (added to --point)")
+    p.add_argument("--positions-mm", metavar="START:STOP:N",
+                   help="table positions (mm, inclusive, N >= 2); default the measured range at "
+                   "71 positions")
+    p.add_argument("--positions", metavar="FILE.csv", dest="positions_file",
+                   help="positions file: position_mm (instead of --positions-mm)")
+    p.add_argument("--extrapolate", action="store_true",
+                   help="allow positions outside the measured range (flagged, large σ)")
+    p.add_argument("--out", required=True, metavar="FILE.csv", help="output CSV")
+    p.set_defaults(func=run)
+    return p
+
+
+def _points(args) -> dict:
+    """The points ``{name: (x, y)}`` (m) of ``--point`` and ``--points``."""
+    from ..io.prediction_csv import parse_point, read_points_file
+
+    pts: dict = {}
+    for text in args.point:
+        name, xy = parse_point(text)
+        if name in pts:
+            raise ValueError(f"--point {name!r} given twice")
+        pts[name] = xy
+    if args.points:
+        for name, xy in read_points_file(args.points).items():
+            if name in pts:
+                raise ValueError(f"{args.points}: point {name!r} is also given by --point")
+            pts[name] = xy
+    if not pts:
+        raise ValueError("give at least one point: --point NAME:X_MM,Y_MM or --points FILE.csv")
+    return pts
+
+
+def _positions(args, post) -> np.ndarray:
+    """The table positions (m): ``--positions-mm``, ``--positions`` or the measured range."""
+    from ..io.prediction_csv import read_positions_file
+    from .simulate import parse_positions
+
+    if args.positions_mm and args.positions_file:
+        raise ValueError("give --positions-mm or --positions, not both")
+    if args.positions_file:
+        return read_positions_file(args.positions_file)
+    if args.positions_mm:
+        try:
+            return parse_positions(args.positions_mm)
+        except ValueError as exc:
+            raise ValueError(str(exc).replace("--positions", "--positions-mm")) from None
+    return np.linspace(*post.position_range, 71)
+
+
+def _machine_spec(meta: dict):
+    """The fitted machine's specification: the fit's machine file or preset."""
+    from ..io.config import default_config, load_config, spec_from_config
+
+    m = meta["machine"]
+    if m.get("config"):
+        return spec_from_config(load_config(m["config"]))
+    return spec_from_config(default_config())
+
+
+def run(args) -> int:
+    from ..inverse.predict import predict
+    from ..io.atomic import atomic_write_text
+    from ..io.fit_posterior import read_fit_posterior
+    from ..io.prediction_csv import prediction_csv_text
+
+    t0 = time.perf_counter()
+    post, meta = read_fit_posterior(args.fit)
+    points = _points(args)
+    x = _positions(args, post)
+    spec = _machine_spec(meta)
+    m = meta["machine"]
+    pred = predict(post, spec, points, x, measured_points=meta["points_m"], nx=m.get("nx"),
+                   ny=m.get("ny"), extrapolate=args.extrapolate)
+    src = f"from the fit in {Path(args.fit).resolve()}"
+    atomic_write_text(args.out, prediction_csv_text(pred, src, meta.get("x0_mm")))
+    _summary(args, pred, time.perf_counter() - t0)
+    return 0
+
+
+def _summary(args, pred, seconds: float) -> None:
+    """Per point: the largest |error| and σ of each quantity over the positions."""
+    from ..machine.errors import ERRORS
+
+    err, sig = pred.user_units()
+    lo, hi = (v * 1e3 for v in pred.position_range)
+    n_out = int(np.sum(pred.extrapolated))
+    say(args, f"predicted {len(pred.positions)} positions x {len(pred.point_names)} points "
+               f"(measured range {lo:g} .. {hi:g} mm"
+               + (f"; {n_out} positions extrapolated, flagged" if n_out else "") + ")"
+               + ("; EXX includes the fitted lead error" if pred.lead else
+                  "; no EXX data: EXX without lead error"))
+    for j, name in enumerate(pred.point_names):
+        x, y = pred.points_xy[j] * 1e3
+        parts = [f"{e.name} {np.max(np.abs(err[:, j, k])):.3g}±{np.max(sig[:, j, k]):.2g}"
+                 for k, e in enumerate(ERRORS)]
+        say(args, f"  {name} ({x:g}, {y:g}) mm, max |error| ± max σ: {', '.join(parts)} "
+                  "(µm, µrad)")
+    say(args, f"wrote {args.out} in {seconds:.1f} s")

@@ -1,0 +1,209 @@
+"""Prediction from a fit (``diffguide predict``, :func:`diffguide.inverse.predict.predict`): the
+errors at a point no instrument stood at and their σ from the fit's full posterior.
+
+The bundled data set is fitted once (the command line, as a user runs it); the σ is checked
+against a finite-difference Jacobian (rails: the plain forward model with one coefficient moved;
+structure: the table condensed again at a moved thickness, the preload set through the
+specification) times the posterior covariance; the lead error against a spline that reproduces
+a line; at a measured point the prediction against the fit's own fitted values."""
+
+import csv
+import dataclasses
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from diffguide.cli import main
+from diffguide.guideway.rails import SplineRail
+from diffguide.inverse.predict import FitPosterior, predict
+from diffguide.io.config import default_config, spec_from_config
+from diffguide.io.fit_posterior import read_fit_posterior
+from diffguide.machine.build import build_machine
+from diffguide.machine.kinematics import joint_errors
+from diffguide.studies.compensation import fitted_compensation
+
+X = np.linspace(-0.3, 0.3, 5)  # one shape for every prediction here: one compilation
+Q = {"Q": (0.3, 0.1)}  # no instrument stood there
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    out = tmp_path_factory.mktemp("predict") / "fit"
+    assert main(["fit", "--measurements", "data/majda2012_measurements.csv", "--out", str(out),
+                 "--no-plots", "-q"]) == 0
+    post, meta = read_fit_posterior(out)
+    return out, post, meta, spec_from_config(default_config())
+
+
+@pytest.fixture(scope="module")
+def prediction(fitted):
+    _, post, meta, spec = fitted
+    return predict(post, spec, Q, X, measured_points=meta["points_m"])
+
+
+def _rails(post, c):
+    c = np.asarray(c).reshape(2, 2, -1)
+    return tuple(SplineRail(post.start, post.spacing, c[r, 0], c[r, 1]) for r in range(2))
+
+
+def _errors(machine, post, c):
+    """Errors at Q (the last point) (n_pos, 6), SI, by the plain forward model."""
+    je = joint_errors(machine, _rails(post, c), X)
+    assert bool(np.all(np.asarray(je.converged)))
+    return np.asarray(je.errors)[:, -1]
+
+
+def test_sigma_is_the_finite_difference_jacobian_times_the_posterior(fitted, prediction):
+    _, post, meta, spec = fitted
+    pts = {**meta["points_m"], **Q}
+    t, p = (post.structure[k]["value"] for k in ("thickness", "preload"))
+
+    def machine(dt=0.0, dp=0.0):
+        s_t, s_p = (post.structure[k]["prior_sigma_log"] for k in ("thickness", "preload"))
+        return build_machine(spec, points=pts, thickness=t * np.exp(dt * s_t),
+                             preload_fraction=p * np.exp(dp * s_p))
+
+    m0 = machine()
+    c0 = post.coeffs.reshape(-1)
+    np.testing.assert_allclose(prediction.errors[:, 0], _errors(m0, post, c0), rtol=0,
+                               atol=1e-12)
+    n_c, h = c0.size, 1e-8  # 0.01 µm per coefficient: the model is all but linear in them
+    J = np.zeros((len(X), 6, post.cov.shape[0]))
+    for k in range(n_c):
+        dc = np.zeros(n_c)
+        dc[k] = h
+        J[..., k] = (_errors(m0, post, c0 + dc) - _errors(m0, post, c0 - dc)) / (2 * h)
+    dq = 0.05  # prior σ of the log
+    J[..., n_c] = (_errors(machine(dt=dq), post, c0) - _errors(machine(dt=-dq), post, c0)) / (
+        2 * dq)
+    J[..., n_c + 1] = (_errors(machine(dp=dq), post, c0) - _errors(machine(dp=-dq), post, c0)) / (
+        2 * dq)
+    sigma = np.sqrt(np.einsum("pkv,vw,pkw->pk", J, post.cov, J))
+    # the thickness column is a secant over ±σ in the prediction, a tangent here
+    np.testing.assert_allclose(prediction.sigma[:, 0], sigma, rtol=0.03, atol=1e-9)
+    assert not prediction.lead and not prediction.extrapolated.any()
+
+
+def test_lead_error_is_in_exx_with_its_sigma(fitted, prediction):
+    """A lead spline whose coefficients lie on a line reproduces the line (a cubic B-spline
+    property): EXX gains ``a·(x − x_ref)``; a covariance along the line, ``σ_a² g gᵀ``, adds
+    ``σ_a²(x − x_ref)²`` to EXX's variance, a constant one (``σ₀²11ᵀ``, σ₀ = 1 mm: the
+    lead's level, which the channel zero takes) nothing."""
+    _, post, meta, spec = fitted
+    ls, lh, ln = -0.4, 0.1, 11
+    g = ls + (np.arange(ln) - 1.0) * lh  # the knot centres: a line's coefficients
+    a, sa = 20e-6, 3e-6  # 20 µm/m, σ 3 µm/m
+    nv = post.cov.shape[0]
+    cases = ((sa**2 * np.outer(g, g), (sa * X) ** 2), (1e-6 * np.ones((ln, ln)), 0 * X))
+    for extra, added in cases:
+        cov = np.zeros((nv + ln, nv + ln))
+        cov[:nv, :nv] = post.cov
+        cov[nv:, nv:] = extra
+        lead = dataclasses.replace(post, lead=a * g, lead_basis=(ls, lh, ln), cov=cov)
+        pr = predict(lead, spec, Q, X, measured_points=meta["points_m"])
+        assert pr.lead
+        np.testing.assert_allclose(pr.errors[:, 0, 0] - prediction.errors[:, 0, 0], a * X,
+                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(pr.sigma[:, 0, 0] ** 2 - prediction.sigma[:, 0, 0] ** 2,
+                                   added, rtol=1e-6, atol=1e-20)
+        np.testing.assert_allclose(pr.sigma[:, 0, 1:], prediction.sigma[:, 0, 1:], rtol=1e-12)
+    # the compensation export is the same prediction: EXX with the lead, and its σ
+    files, _ = fitted_compensation(spec, lead, X * 1e3, "Q", "csv",
+                                   points={**meta["points_m"], **Q})
+    rows = list(csv.DictReader(ln for ln in files[""].splitlines() if not ln.startswith("#")))
+    for col, want in (("EXX_um", pr.errors), ("EXX_sigma_um", pr.sigma)):
+        np.testing.assert_allclose([float(r[col]) for r in rows], want[:, 0, 0] * 1e6,
+                                   atol=1e-3)
+
+
+def _fitted_curve(out, point, quantity):
+    """The fit's own fitted values of one channel (fit.csv), per position: (mm, value)."""
+    with open(out / "fit.csv", newline="", encoding="utf-8") as fh:
+        rows = [r for r in csv.DictReader(fh) if r["point"] == point
+                and r["quantity"] == quantity and r["status"] == "used"]
+    x = np.array([float(r["position_mm"]) for r in rows])
+    v = np.array([float(r["fitted"]) for r in rows])
+    xs = np.unique(x)
+    return xs, np.array([v[x == s][0] for s in xs])
+
+
+def test_at_a_measured_point_the_prediction_is_the_fits_model(fitted):
+    """Up to the channel's zero (a constant the fit profiles out)."""
+    out, post, meta, spec = fitted
+    pts = {k: meta["points_m"][k] for k in ("P1", "P5")}
+    xs, _ = _fitted_curve(out, "P5", "EBX")
+    xs = xs[np.argsort(np.abs(xs))][:5]  # five measured positions: the same compiled shape
+    pr = predict(post, spec, pts, np.sort(xs) * 1e-3, measured_points=meta["points_m"])
+    for j, (point, quantity, k) in enumerate((("P1", "EAX", 3), ("P5", "EBX", 4))):
+        x_mm, v = _fitted_curve(out, point, quantity)
+        ref = np.array([v[np.isclose(x_mm, s)][0] for s in np.sort(xs)])
+        d = pr.errors[:, j, k] * 1e6 - ref
+        assert np.ptp(d) < 2e-4 * np.ptp(ref) + 1e-5, (point, quantity, d)
+
+
+def test_outside_the_measured_range_refused_or_flagged(fitted):
+    _, post, meta, spec = fitted
+    narrow = dataclasses.replace(post, position_range=(-0.25, 0.25))
+    with pytest.raises(ValueError, match=r"outside the measured range \[-250, 250\] mm"):
+        predict(narrow, spec, Q, X, measured_points=meta["points_m"])
+    pr = predict(narrow, spec, Q, X, measured_points=meta["points_m"], extrapolate=True)
+    np.testing.assert_array_equal(pr.extrapolated, np.abs(X) > 0.25)
+    assert np.all(np.isfinite(pr.sigma))
+    with pytest.raises(ValueError, match="beyond the machine's stroke"):
+        predict(post, spec, Q, [0.0, 0.4], measured_points=meta["points_m"], extrapolate=True)
+    with pytest.raises(ValueError, match="off the table"):
+        predict(post, spec, {"R": (0.6, 0.0)}, X)
+
+
+def _read_csv(path):
+    with open(path, encoding="utf-8") as fh:
+        lines = [ln for ln in fh if not ln.startswith("#")]
+    return list(csv.DictReader(lines))
+
+
+def test_command_line_end_to_end(fitted, prediction, tmp_path, capsys):
+    out, post, *_ = fitted
+    pts = tmp_path / "points.csv"
+    pts.write_text("point,x_mm,y_mm\nQ,300,100\n", encoding="utf-8")
+    csv_out = tmp_path / "pred.csv"
+    assert main(["predict", "--fit", str(out), "--points", str(pts), "--positions-mm",
+                 "-300:300:5", "--out", str(csv_out)]) == 0
+    header = csv_out.read_text(encoding="utf-8").splitlines()[:6]
+    assert any("units:" in h and "um" in h and "urad" in h for h in header)
+    assert any("ISO 230-1" in h for h in header) and any("EXX" in h for h in header)
+    rows = _read_csv(csv_out)
+    assert len(rows) == 5 and {r["point"] for r in rows} == {"Q"}
+    got = np.array([[float(r[c]) for c in ("EZX_um", "EBX_urad", "EYX_sigma_um")] for r in rows])
+    want = np.stack([prediction.errors[:, 0, 2] * 1e6, prediction.errors[:, 0, 4] * 1e6,
+                     prediction.sigma[:, 0, 1] * 1e6], axis=1)
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    assert "wrote" in capsys.readouterr().out
+    # a fit measured over a narrower range: refused, then flagged with --extrapolate
+    narrow = tmp_path / "narrow"
+    shutil.copytree(out, narrow)
+    d = json.loads((narrow / "posterior.json").read_text(encoding="utf-8"))
+    d["position_range_m"] = [-0.25, 0.25]
+    (narrow / "posterior.json").write_text(json.dumps(d), encoding="utf-8")
+    argv = ["predict", "--fit", str(narrow), "--point", "Q:300,100", "--positions-mm",
+            "-300:300:5", "--out", str(tmp_path / "x.csv")]
+    assert main(argv) == 2
+    assert "outside the measured range [-250, 250] mm" in capsys.readouterr().err
+    assert not (tmp_path / "x.csv").exists()
+    assert main(argv + ["--extrapolate", "-q"]) == 0
+    flags = [r["extrapolated"] for r in _read_csv(tmp_path / "x.csv")]
+    assert flags == ["1", "0", "0", "0", "1"]
+    # not a fit folder with a posterior
+    assert main(["predict", "--fit", str(tmp_path), "--point", "Q:0,0", "--out",
+                 str(tmp_path / "y.csv")]) == 2
+    assert "posterior.json: not found" in capsys.readouterr().err
+
+
+def test_from_fit_refuses_a_fit_without_posterior():
+    class Old:
+        posterior_cov = np.zeros((0, 0))
+        position_range = ()
+
+    with pytest.raises(ValueError, match="no full posterior"):
+        FitPosterior.from_fit(Old())
