@@ -3,7 +3,7 @@
 # process (bench/battery_table.py and bench/battery_predict.py), as many at once as there are
 # cores. Logs and JSON per case under OUT (default bench-out/). Slow per case: on a 16-core machine
 # no single-threaded case had finished after 520 s (truth machine 40 × 20, fit, prediction); give
-# each case several threads (THREADS) where cores allow. Run from the repository root:
+# each case several threads (edit XLA_FLAGS) where cores allow. Run from the repository root:
 #     bash bench/battery_parallel.sh [OUT]
 set -u
 OUT=${1:-bench-out}
