@@ -93,21 +93,6 @@ def location_warnings(
     return out
 
 
-def fitted_machine(spec, fit, *, points: dict, nx: int | None = None, ny: int | None = None):
-    """The machine a fit describes: ``spec`` (a :class:`~diffguide.machine.spec.MachineSpec`)
-    built at the fitted structure (``fit.structure``: thickness in m, preload as a fraction of
-    C; the spec's own values where the fit held them) with the points ``{name: (x, y)}`` (m)
-    and the mesh ``nx × ny`` (default the spec's)."""
-    from ..machine.build import build_machine
-
-    kw = {}
-    if "thickness" in fit.structure:
-        kw["thickness"] = fit.structure["thickness"]["value"]
-    if "preload" in fit.structure:
-        kw["preload_fraction"] = fit.structure["preload"]["value"]
-    return build_machine(spec, nx=nx, ny=ny, points=points, **kw)
-
-
 def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
                         nx: int | None = None, ny: int | None = None, x0_mm: float = 0.0,
                         source: str = "", tol_um: float = 2.0,
