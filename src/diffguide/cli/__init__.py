@@ -35,6 +35,7 @@ _COMMANDS = {
     "import": "import_",
     "fit": "fit",
     "montecarlo": "montecarlo",
+    "tolerance": "tolerance",
     "plan": "plan",
     "predict": "predict",
 }

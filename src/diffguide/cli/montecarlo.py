@@ -23,21 +23,9 @@ _PLANES = {
 MOUNTING_CHOICES = ("none", "precision", "size25-ZB", "size25-ZA", "size25-ZO")
 
 
-def add_parser(sub) -> None:
-    p = sub.add_parser(
-        "montecarlo",
-        help="distribution of the joint-error ranges and corner roll differences for random rails",
-        description="Draw random rail pairs (a stationary Gaussian process per rail and plane, "
-        "with the given RMS and correlation length, plus a mounting-tolerance class for rail 2), "
-        "solve the sweep for each in batched, compiled chunks, and write per sample the range of "
-        "each joint error at each control point (µm, µrad) and the largest roll difference "
-        "between each pair of corners over the sweep (µrad).",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
-    add_machine_arguments(p)
-    p.add_argument("--samples", type=int, default=1000, help="number of random rail pairs")
-    p.add_argument("--rail-rms-um", type=float, default=5.0,
-                   help="RMS straightness deviation σ of each rail and plane (µm)")
+def add_study_arguments(p) -> None:
+    """The random rails' model (correlation, kernel, planes, mounting), the sweep (positions,
+    mesh, rigid table), the batching and the seed: shared by ``montecarlo`` and ``tolerance``."""
     p.add_argument("--corr-mm", type=float, default=200.0,
                    help="correlation length ℓ of the rail deviation (mm)")
     p.add_argument("--kernel", choices=tuple(_KERNELS), default="se",
@@ -58,6 +46,24 @@ def add_parser(sub) -> None:
     p.add_argument("--cpu-devices", type=int, default=None,
                    help="on CPU, split the cores into this many JAX devices and shard over them "
                    "(default: one per core; 1 = no sharding)")
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "montecarlo",
+        help="distribution of the joint-error ranges and corner roll differences for random rails",
+        description="Draw random rail pairs (a stationary Gaussian process per rail and plane, "
+        "with the given RMS and correlation length, plus a mounting-tolerance class for rail 2), "
+        "solve the sweep for each in batched, compiled chunks, and write per sample the range of "
+        "each joint error at each control point (µm, µrad) and the largest roll difference "
+        "between each pair of corners over the sweep (µrad).",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    add_machine_arguments(p)
+    p.add_argument("--samples", type=int, default=1000, help="number of random rail pairs")
+    p.add_argument("--rail-rms-um", type=float, default=5.0,
+                   help="RMS straightness deviation σ of each rail and plane (µm)")
+    add_study_arguments(p)
     p.add_argument("--out", required=True, help="output CSV (one row per sample)")
     p.add_argument("--plot", help="output figure (PNG) of the distributions")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
@@ -102,6 +108,11 @@ def _check(args) -> None:
         raise ValueError(f"--samples must be in 1..10000000, got {args.samples}")
     if not (np.isfinite(args.rail_rms_um) and 0 <= args.rail_rms_um <= 1e4):
         raise ValueError(f"--rail-rms-um must be in 0..10000 µm, got {args.rail_rms_um}")
+    check_study(args)
+
+
+def check_study(args) -> None:
+    """Range checks of :func:`add_study_arguments`' options (``ValueError`` naming the flag)."""
     if not (np.isfinite(args.corr_mm) and 1 <= args.corr_mm <= 1e5):
         raise ValueError(f"--corr-mm must be in 1..100000 mm, got {args.corr_mm}")
     if args.chunk is not None and not 1 <= args.chunk <= 100_000:
@@ -155,18 +166,14 @@ def split_cpu_into_devices(n: int | None = None) -> bool:
     return True
 
 
-def run(args) -> int:
-    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
-
-    _check(args)
-    if args.cpu_devices is None or args.cpu_devices > 1:
-        split_cpu_into_devices(args.cpu_devices)  # before the first array; no-op afterwards
-
+def study_setup(args, rms: float, say):
+    """The machine, positions (m), rail model (RMS ``rms``, m) and knots of a random-rails
+    study from its command line (:func:`add_study_arguments`): ``(name, machine, positions,
+    model, knots)``."""
     from ..inverse.fit import visited_range
     from ..io.config import spec_from_config
     from ..machine.build import build_machine
-    from ..studies.montecarlo import batched_sweep
-    from ..studies.random_rails import GaussianRailModel, default_knots, sample_rails
+    from ..studies.random_rails import GaussianRailModel, default_knots
     from ._common import machine_config
 
     cfg = machine_config(args)
@@ -179,10 +186,8 @@ def run(args) -> int:
             f"{args.config or args.preset}, got {args.positions!r}"
         )
     nx, ny = parse_mesh(args.mesh)
-    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
-    model = GaussianRailModel(
-        args.rail_rms_um * 1e-6, args.corr_mm * 1e-3, _KERNELS[args.kernel], _PLANES[args.planes]
-    )
+    model = GaussianRailModel(rms, args.corr_mm * 1e-3, _KERNELS[args.kernel],
+                              _PLANES[args.planes])
     name = args.config or args.preset
     say(f"building the {name} machine (table mesh {nx}x{ny}) ...")
     machine = build_machine(spec_from_config(cfg), nx=nx, ny=ny)
@@ -192,9 +197,24 @@ def run(args) -> int:
     knots = default_knots(model.correlation_length)
     if lo < knots[0] or hi > knots[0] + (knots[2] - 3) * knots[1]:
         knots = default_knots(model.correlation_length, start=lo - 0.05, end=hi + 0.05)
-    rails = sample_rails(args.seed, args.samples, model, args.mounting, knots=knots)
     if args.rigid_table:
         machine = machine.with_rigid_table()
+    return name, machine, positions, model, knots
+
+
+def run(args) -> int:
+    from ..io.atomic import atomic_savefig, atomic_write_text  # here: --help imports no JAX
+
+    _check(args)
+    if args.cpu_devices is None or args.cpu_devices > 1:
+        split_cpu_into_devices(args.cpu_devices)  # before the first array; no-op afterwards
+
+    from ..studies.montecarlo import batched_sweep
+    from ..studies.random_rails import sample_rails
+
+    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
+    name, machine, positions, model, knots = study_setup(args, args.rail_rms_um * 1e-6, say)
+    rails = sample_rails(args.seed, args.samples, model, args.mounting, knots=knots)
     import jax
 
     say(
