@@ -15,6 +15,7 @@ import os
 import tomllib
 from pathlib import Path
 
+from .carriage_block import resolve_catalogue
 from .config_spec import FIT_SCHEMA as FIT_SCHEMA
 from .config_spec import KEYS as KEYS
 from .config_spec import RIB_KEYS as RIB_KEYS
@@ -91,7 +92,11 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
     """
     if not isinstance(raw, dict):
         raise ValueError(f"{source}: the configuration must be a table of sections")
+    # [carriage] block = ... / datasheet values -> the internal keys (io/carriage_block.py)
+    raw, catalogue = resolve_catalogue(raw, source, _check, schema()["carriage"])
     cfg = default_config()
+    if catalogue is not None:
+        cfg["catalogue"] = catalogue
     for section, body in raw.items():
         where = f"{source}: [{section}]"
         if section == "ribs":
