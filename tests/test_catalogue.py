@@ -14,7 +14,7 @@ import pytest
 
 from diffguide.guideway.carriage import carriage_from_spec
 from diffguide.guideway.catalogue import (
-    calibrate,
+    calibrate_block,
     catalogue_block,
     datasheet_block,
     known_blocks,
@@ -62,7 +62,7 @@ def test_the_table_holds_the_published_blocks():
 @pytest.mark.parametrize("name", sorted(PUBLISHED))
 @pytest.mark.parametrize("cls", sorted(HG_CLASSES))
 def test_model_rigidity_matches_the_catalogue(name, cls):
-    spec, prov = calibrate(name, cls)
+    spec, prov = calibrate_block(name, cls)
     published = PUBLISHED[name][cls] * 1e6  # N/m
     k = fd_radial_rigidity(spec)
     assert abs(k / published - 1) < 0.05, (name, cls, k / 1e6)
@@ -82,14 +82,14 @@ def test_model_rigidity_matches_the_catalogue(name, cls):
 
 def test_unknown_block_lists_the_known_ones():
     with pytest.raises(ValueError, match="HIWIN-HG 30 C.*known blocks: .*HIWIN-HG 25 C"):
-        calibrate("HIWIN-HG 30 C", "ZA")
+        calibrate_block("HIWIN-HG 30 C", "ZA")
 
 
 def test_bad_preload_class_names_the_allowed_ones():
     with pytest.raises(ValueError, match="'Z9' is unknown; allowed: Z0, ZA, ZB"):
-        calibrate("HIWIN-HG 25 C", "Z9")
+        calibrate_block("HIWIN-HG 25 C", "Z9")
     with pytest.raises(ValueError, match="preload class is needed; allowed: Z0, ZA, ZB"):
-        calibrate("HIWIN-HG 25 C")
+        calibrate_block("HIWIN-HG 25 C")
 
 
 def test_names_ignore_case_and_spacing():
@@ -109,7 +109,7 @@ def test_a_datasheet_block_is_calibrated_to_its_rigidity(element):
         rail_width=23e-3,
         rail_height=22e-3,
     )
-    spec, prov = calibrate(block)
+    spec, prov = calibrate_block(block)
     assert spec.law == ("hertz" if element == "ball" else "roller")
     assert abs(fd_radial_rigidity(spec) / 1500e6 - 1) < 0.05
     assert spec.capacity == 48.9e3 and spec.preload_fraction == 0.08
@@ -118,21 +118,21 @@ def test_a_datasheet_block_is_calibrated_to_its_rigidity(element):
 
 
 def test_explicit_values_override():
-    base, _ = calibrate("HIWIN-HG 25 C", "ZA")
+    base, _ = calibrate_block("HIWIN-HG 25 C", "ZA")
     # an explicit contact parameter is used as given, not fitted
-    spec, prov = calibrate("HIWIN-HG 25 C", "ZA", groove_conformity=1.02)
+    spec, prov = calibrate_block("HIWIN-HG 25 C", "ZA", groove_conformity=1.02)
     assert spec.groove_conformity == 1.02 and prov["groove_conformity"] == "explicit"
     assert fd_radial_rigidity(spec) < 0.9 * 630e6  # a looser groove: softer
     # explicit geometry: the conformity is re-fitted with it, the rigidity still matches
-    spec, prov = calibrate("HIWIN-HG 25 C", "ZA", elements_per_row=6, ball_diameter=5e-3)
+    spec, prov = calibrate_block("HIWIN-HG 25 C", "ZA", elements_per_row=6, ball_diameter=5e-3)
     assert spec.elements_per_row == 6 and spec.ball_diameter == 5e-3
     assert prov["elements_per_row"] == "explicit"
     assert abs(fd_radial_rigidity(spec) / 630e6 - 1) < 0.05
     # an explicit preload sets the operating preload; the geometry stays the class's
-    spec, _ = calibrate("HIWIN-HG 25 C", "ZA", preload_fraction=0.03)
+    spec, _ = calibrate_block("HIWIN-HG 25 C", "ZA", preload_fraction=0.03)
     assert spec.preload_fraction == 0.03 and spec.groove_conformity == base.groove_conformity
     with pytest.raises(ValueError, match="unknown carriage fields"):
-        calibrate("HIWIN-HG 25 C", "ZA", ball_size=5e-3)
+        calibrate_block("HIWIN-HG 25 C", "ZA", ball_size=5e-3)
 
 
 def test_toml_block_builds_a_machine(tmp_path):

@@ -4,7 +4,7 @@ A catalogue gives, per block, the dynamic capacity C, the static capacity C0, pr
 fractions of C, a rigidity (N/µm) per preload class and the block's envelope; it gives none of
 the internal parameters the element model (:class:`~diffguide.guideway.carriage.CarriageSpec`)
 needs. The table of published figures is :mod:`~diffguide.guideway.catalogue_data` (every block
-with its source); :func:`calibrate` turns a block and a preload class into a specification
+with its source); :func:`calibrate_block` turns a block and a preload class into a specification
 in four steps:
 
 1. **Published, used as given:** the capacity C (so the preload ``f·C`` and any life figure use
@@ -351,11 +351,19 @@ def _fit(spec: CarriageSpec, field: str, bounds, target: float, block: str) -> C
 SPEC_FIELDS = tuple(f.name for f in dataclasses.fields(CarriageSpec))
 
 
-def calibrate(
+def calibrate_block(
     block: CatalogueBlock | str, preload_class: str | None = None, **explicit
 ) -> tuple[CarriageSpec, dict[str, str]]:
     """The :class:`CarriageSpec` of a catalogue block at a preload class, and where each value
-    comes from (module docstring: published, chosen, calibrated, explicit).
+    comes from: published, chosen, calibrated or explicit.
+
+    The capacity is the published C; the element size, count, pitch and rows follow
+    :func:`envelope_geometry`; the preload is the middle of the class's published range; the
+    groove conformity (balls) or effective roller length (rollers) is fitted so that
+    :func:`radial_rigidity` (the tangent stiffness under a load pressing the block onto the
+    rail, at the preload without other load) equals the published rigidity of the class.
+    Explicit fields replace the rules; the contact parameter is re-fitted with them unless it
+    is explicit too. An explicit ``preload_fraction`` sets the operating preload only.
 
     Arguments:
         block: a :class:`CatalogueBlock` or a name in the table (:func:`catalogue_block`).

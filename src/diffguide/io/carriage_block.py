@@ -143,7 +143,7 @@ def resolve_catalogue(raw: dict, source: str, check, schema: dict) -> tuple[dict
         ``(raw, info)``: ``info`` is ``None`` when the section names no block, otherwise
         ``{"block", "preload_class", "provenance": {key: text}}``.
     """
-    from ..guideway.catalogue import calibrate
+    from ..guideway.catalogue import calibrate_block
 
     body = raw.get("carriage") if isinstance(raw, dict) else None
     if not isinstance(body, dict) or not CATALOGUE_KEYS.keys() & body.keys():
@@ -152,7 +152,7 @@ def resolve_catalogue(raw: dict, source: str, check, schema: dict) -> tuple[dict
     explicit = _explicit(body, source, check, schema)
     block, cls = _block(cat, explicit, source)
     try:
-        spec, prov = calibrate(block, cls, **explicit)
+        spec, prov = calibrate_block(block, cls, **explicit)
     except ValueError as exc:
         raise ValueError(f"{source}: [carriage]: {exc}") from None
     carriage = {key: _user(getattr(spec, _field(key)[0]), _field(key)[1]) for key in schema}
