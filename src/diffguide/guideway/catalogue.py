@@ -185,7 +185,9 @@ def _table() -> dict[str, CatalogueBlock]:
             block_width=row["block_width_mm"] * mm,
             body_length=row["body_length_mm"] * mm,
             block_length=row["block_length_mm"] * mm,
-            bolt_pattern=tuple(v * mm for v in row["bolt_pattern_mm"]),
+            bolt_pattern=None
+            if row["bolt_pattern_mm"] is None
+            else tuple(v * mm for v in row["bolt_pattern_mm"]),
             rail_width=row["rail_width_mm"] * mm,
             rail_height=row["rail_height_mm"] * mm,
             source=full(src),

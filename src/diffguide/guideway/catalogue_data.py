@@ -3,8 +3,9 @@ source (read by :mod:`diffguide.guideway.catalogue`, which derives the model's i
 from these figures). Units in the key names.
 
 A block is named ``"<family> <size> <type>"``: the maker's series, the size class and the
-maker's block-type code (here HIWIN's load class: C = heavy load, H = super heavy load; the
-square HGH..A and flange HGW..C blocks of one load class share C, C0 and rigidity).
+maker's block-type code (here HIWIN's load class: HG C = heavy load, H = super heavy load; EG
+S = medium load, C = heavy load; the square and flange blocks of one load class share C, C0 and
+rigidity).
 
 - ``element``: ``"ball"`` or ``"roller"``.
 - ``preload_classes``: ``(low, high)`` fractions of the dynamic capacity C, as published.
@@ -22,8 +23,8 @@ SOURCES = {
         "catalogue": "HIWIN Compact: Linear Guideways, Ballscrews, Linear Stages "
         "(HIWIN GmbH, Offenburg, www.hiwin.de)",
         "edition": "year not printed in the copy read",
-        "pages": "p. 10 (Table 1.12 preload), p. 11 (Table 1.13 rigidity HG), p. 18 "
-        "(HG dimension table, HGH..CA / HGH..HA)",
+        "pages": "p. 10 (Table 1.12 preload), p. 11 (Tables 1.13, 1.14 rigidity HG, EG), p. 18 "
+        "(HG dimension table, HGH..CA / HGH..HA), p. 21 (sec. 1.1.13, EGH..SA / EGH..CA)",
         "url": "https://vdocuments.net/linear-guideways-ballscrews-positioning-systems-hiwin-p-007-c-dyn-28-p-z0-elastic.html",
     },
     "hiwin-technical-information": {
@@ -48,7 +49,16 @@ FAMILIES = {
         "preload_classes": {"Z0": (0.0, 0.02), "ZA": (0.05, 0.07), "ZB": (0.1, 0.12)},
         "rigidity_direction": "radial",
         "rigidity_load": "not stated (deflection = load / rigidity, Compact formula 1.1)",
-    }
+    },
+    "HIWIN-EG": {
+        "element": "ball",
+        "contact_angle_deg": None,  # not found in the sources read
+        "source": "hiwin-compact",
+        # Compact Table 1.12, the EG ranges
+        "preload_classes": {"Z0": (0.0, 0.02), "ZA": (0.03, 0.05), "ZB": (0.06, 0.08)},
+        "rigidity_direction": "radial",
+        "rigidity_load": "not stated (deflection = load / rigidity, Compact formula 1.1)",
+    },
 }
 
 #: The blocks, user units (N, N/µm, mm).
@@ -116,5 +126,39 @@ BLOCKS = [
         "bolt_pattern_mm": (72.0, 50.0),
         "rail_width_mm": 34.0,
         "rail_height_mm": 29.0,
+    },
+    # HIWIN Compact p. 11 Table 1.14 (rigidity EG) and p. 21 (EGH..SA / EGH..CA): S = medium
+    # load (no bolt spacing C along X given), C = heavy load.
+    {
+        "family": "HIWIN-EG",
+        "size": "25",
+        "type": "S",
+        "source": "hiwin-compact",
+        "C_N": 11400.0,
+        "C0_N": 19500.0,
+        "rigidity_N_um": {"Z0": 200.0, "ZA": 240.0, "ZB": 270.0},
+        "block_height_mm": 33.0,
+        "block_width_mm": 48.0,
+        "body_length_mm": 35.5,
+        "block_length_mm": 61.1,
+        "bolt_pattern_mm": None,
+        "rail_width_mm": 23.0,
+        "rail_height_mm": 18.0,
+    },
+    {
+        "family": "HIWIN-EG",
+        "size": "25",
+        "type": "C",
+        "source": "hiwin-compact",
+        "C_N": 16270.0,
+        "C0_N": 32400.0,
+        "rigidity_N_um": {"Z0": 290.0, "ZA": 360.0, "ZB": 400.0},
+        "block_height_mm": 33.0,
+        "block_width_mm": 48.0,
+        "body_length_mm": 59.0,
+        "block_length_mm": 84.6,
+        "bolt_pattern_mm": (35.0, 35.0),
+        "rail_width_mm": 23.0,
+        "rail_height_mm": 18.0,
     },
 ]
