@@ -220,3 +220,13 @@ def test_bad_catalogue_sections_say_what_is_wrong(body, message):
     with pytest.raises(ValueError, match="m.toml") as exc:
         validate_config({"carriage": body}, "m.toml")
     assert message in str(exc.value)
+
+
+def test_a_misspelt_block_key_lists_the_catalogue_keys():
+    with pytest.raises(ValueError, match="'carriage.blok' is unknown; allowed: .*block, preload"):
+        validate_config({"carriage": {"blok": "HIWIN-HG 25 C"}}, "m.toml")
+
+
+def test_the_written_file_names_its_block():
+    cfg = validate_config({"carriage": {"block": "HIWIN-EG 25 C", "preload_class": "Z0"}}, "m")
+    assert "# carriage: HIWIN-EG 25 C, preload class Z0" in dump_config(cfg)
