@@ -46,6 +46,7 @@ from collections.abc import Mapping
 
 import jax.numpy as jnp
 
+from .._core.precision import require_x64
 from . import catalogue_data
 from .carriage import CarriageSpec, carriage_from_spec
 
@@ -315,6 +316,7 @@ def _fit(spec: CarriageSpec, field: str, bounds, target: float, block: str) -> C
     """Solve ``log radial_rigidity = log target`` for ``u = log(field)`` (conformity:
     ``u = log(D/d − 1)``) by regula falsi with the Illinois step (bracketed, float64; the
     rigidity is monotonic and nearly a power of the parameter, so a few steps suffice)."""
+    require_x64("calibrate_block (the catalogue calibration)")
     shift = 1.0 if field == "groove_conformity" else 0.0
 
     def f(u):
