@@ -1,6 +1,6 @@
 """Guideway layer: rail error profiles, a rigid carriage on its rail (rows of preloaded
-elements), the paper's and a roller runner block, and one carriage's equilibrium and static
-characteristic."""
+elements), the paper's and a roller runner block, catalogue runner blocks calibrated to their
+published rigidity, and one carriage's equilibrium and static characteristic."""
 
 from .blocks import ball_block_25 as ball_block_25
 from .blocks import majda2012_carriage as majda2012_carriage
@@ -12,6 +12,12 @@ from .carriage import carriage_from_spec as carriage_from_spec
 from .carriage import element_offsets as element_offsets
 from .carriage import four_row_carriage as four_row_carriage
 from .carriage import row_layout as row_layout
+from .catalogue import CatalogueBlock as CatalogueBlock
+from .catalogue import calibrate_block as calibrate_block
+from .catalogue import catalogue_block as catalogue_block
+from .catalogue import datasheet_block as datasheet_block
+from .catalogue import known_blocks as known_blocks
+from .catalogue import radial_rigidity as radial_rigidity
 from .rails import AbstractRailProfile as AbstractRailProfile
 from .rails import BumpRail as BumpRail
 from .rails import PaperPolynomialRail as PaperPolynomialRail

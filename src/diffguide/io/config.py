@@ -15,6 +15,7 @@ import os
 import tomllib
 from pathlib import Path
 
+from .carriage_block import CATALOGUE_KEYS, resolve_catalogue
 from .config_spec import FIT_SCHEMA as FIT_SCHEMA
 from .config_spec import KEYS as KEYS
 from .config_spec import RIB_KEYS as RIB_KEYS
@@ -91,7 +92,11 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
     """
     if not isinstance(raw, dict):
         raise ValueError(f"{source}: the configuration must be a table of sections")
+    # [carriage] block = ... / datasheet values -> the internal keys (io/carriage_block.py)
+    raw, catalogue = resolve_catalogue(raw, source, _check, schema()["carriage"])
     cfg = default_config()
+    if catalogue is not None:
+        cfg["catalogue"] = catalogue
     for section, body in raw.items():
         where = f"{source}: [{section}]"
         if section == "ribs":
@@ -140,9 +145,10 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
             raise ValueError(f"{where}: must be a table of keys")
         for key, value in body.items():
             if key not in schema()[section]:
+                extra = CATALOGUE_KEYS if section == "carriage" else {}
                 raise ValueError(
                     f"{source}: key '{section}.{key}' is unknown; allowed: "
-                    f"{', '.join(schema()[section])}"
+                    f"{', '.join([*schema()[section], *extra])}"
                 )
             cfg[section][key] = _check(
                 value, schema()[section][key], f"{source}: key '{section}.{key}'"
@@ -279,6 +285,11 @@ def dump_config(cfg: dict, title: str = "") -> str:
         "# units are in the key names; every key is optional (defaults: majda2012)",
         "",
     ]
+    if cfg.get("catalogue"):  # a catalogue block, written as its resolved internal keys
+        lines[-1:-1] = [
+            f"# carriage: {cfg['catalogue']['block']}, preload class "
+            f"{cfg['catalogue']['preload_class']}; its calibrated internal values below"
+        ]
     for section, keys in schema().items():
         lines.append(f"[{section}]")
         for key, spec in keys.items():
