@@ -221,3 +221,30 @@ def test_fit_section_rigid_switch(tmp_path):
     again.write_text(dump_config(cfg))
     assert "rigid = true" in again.read_text()
     assert load_config(again)["fit"]["rigid"] is True
+
+
+def test_explain_names_each_values_source_and_reads_back(tmp_path, capsys):
+    """``config --explain``: a key the file gives is 'file', a catalogue block's published C
+    'catalogue, published', its calibrated conformity 'catalogue, calibrated', the rest
+    'default'; the text (sources are comments) is a machine file that resolves to the same
+    machine."""
+    import tomllib
+
+    from diffguide.io.config import validate_config
+
+    path = tmp_path / "m.toml"
+    path.write_text('[table]\nthickness_mm = 60.0\n[carriage]\nblock = "HIWIN-HG 25 C"\n'
+                    'preload_class = "ZA"\n', encoding="utf-8")
+    assert main(["config", "--explain", str(path)]) == 0
+    text = capsys.readouterr().out
+    lines = {ln.split(" = ")[0]: ln for ln in text.splitlines() if " = " in ln}
+    assert lines["thickness_mm"].endswith("# file")
+    assert lines["length_mm"].endswith("# default")
+    assert "# catalogue, published: C = 26480 N" in lines["capacity_N"]
+    assert "# catalogue, calibrated: radial rigidity" in lines["groove_conformity"]
+    again = validate_config(tomllib.loads(text), "explained")
+    want = load_config(path)
+    def body(cfg):  # every value to 12 digits, without the catalogue's header comment
+        return [ln for ln in dump_config(cfg).splitlines() if not ln.startswith("# carriage:")]
+
+    assert body(again) == body(want)

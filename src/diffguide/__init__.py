@@ -80,6 +80,8 @@ _LAZY = {
     "MonteCarloResult": ".studies",
     "MountingTolerance": ".studies",
     "RailBatch": ".studies",
+    "ToleranceResult": ".studies",
+    "allocate_grade": ".studies",
     "batched_sweep": ".studies",
     "compensation_table": ".studies",
     "influence_map": ".studies",

@@ -18,13 +18,20 @@ def add_parser(sub) -> None:
         "--out", metavar="FILE.toml", help="write to this file instead of standard output"
     )
     p.add_argument("--check", metavar="MACHINE.toml", help="validate this file and report")
+    p.add_argument("--explain", metavar="MACHINE.toml",
+                   help="print the machine this file resolves to, each value with its source "
+                   "(the file, the runner-block catalogue with what was published, chosen or "
+                   "calibrated, or the default)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from ..io.atomic import atomic_write_text
-    from ..io.config import default_config, dump_config, load_config
+    from ..io.config import default_config, dump_config, explain_config, load_config
 
+    if args.explain:
+        sys.stdout.write(explain_config(args.explain))
+        return 0
     if args.check:
         cfg = load_config(args.check)
         if not args.quiet:

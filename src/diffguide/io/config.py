@@ -252,6 +252,11 @@ def _check_nut(cfg: dict, source: str) -> None:
 
 def load_config(path: str | os.PathLike) -> dict:
     """Read and validate a machine TOML file (see :func:`validate_config`)."""
+    return validate_config(_read_toml(path), str(path))
+
+
+def _read_toml(path: str | os.PathLike) -> dict:
+    """The raw TOML table of a machine file (clear errors for unreadable or malformed files)."""
     path = Path(path)
     try:
         data = path.read_bytes()
@@ -263,7 +268,43 @@ def load_config(path: str | os.PathLike) -> dict:
         raise ValueError(f"{path}: not a UTF-8 text file") from None
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{path}: malformed TOML: {exc}") from None
-    return validate_config(raw, str(path))
+    return raw
+
+
+def explain_config(path: str | os.PathLike) -> str:
+    """The resolved machine of a TOML file, every value with where it came from: ``file`` (the
+    file gives it), ``catalogue`` (published, chosen or calibrated for a catalogue or datasheet
+    block, with its source) or ``default`` (the ``majda2012`` preset's value); user units."""
+    raw = _read_toml(path)
+    cfg = validate_config(raw, str(path))
+    prov = (cfg.get("catalogue") or {}).get("provenance", {})
+    lines = [f"# {path}: the resolved machine; each value's source after '#'"]
+    if cfg.get("catalogue"):
+        lines.append(f"# carriage: {cfg['catalogue']['block']}, preload class "
+                     f"{cfg['catalogue']['preload_class']}")
+
+    def source(section, key):
+        if key in raw.get(section, {}):
+            return "file"
+        where = prov.get(key if section == "carriage" else f"{section}.{key}")
+        return f"catalogue, {where}" if where else "default"
+
+    for section, keys in schema().items():
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {_toml_value(cfg[section][k])}  # {source(section, k)}" for k in keys]
+        lines.append("")
+    lines.append(f"[points]  # {'file' if 'points' in raw else 'default'}")
+    lines += [f"{n} = {_toml_value(xy)}" for n, xy in cfg["points"].items()]
+    lines.append("")
+    lines.append(f"# ribs: {len(cfg['ribs'])} ({'file' if 'ribs' in raw else 'default'})")
+    fit = cfg.get("fit", {})
+    lines.append("[fit]")
+    for k, spec in FIT_SCHEMA.items():
+        v = fit.get(k, spec[0])
+        src = "file" if k in raw.get("fit", {}) else "default"
+        lines.append(f"# {k}: the machine's value  # {src}" if v is None
+                     else f"{k} = {_toml_value(v)}  # {src}")
+    return "\n".join(lines) + "\n"
 
 
 def _toml_value(v) -> str:

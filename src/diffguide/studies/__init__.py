@@ -1,6 +1,7 @@
 """Studies built on the machine: Monte Carlo tolerance sweeps over random rails, sensitivity
 (gradients, influence maps), CNC compensation tables, the fitted rails' straightness with its
-uncertainty and verdict."""
+uncertainty and verdict, the loosest rail grade for a stated error limit (tolerance
+allocation)."""
 
 from .compensation import compensation_table as compensation_table
 from .compensation import location_warnings as location_warnings
@@ -14,3 +15,5 @@ from .sensitivity import influence_map as influence_map
 from .sensitivity import roll_spread as roll_spread
 from .straightness import rail_straightness as rail_straightness
 from .straightness import straightness as straightness
+from .tolerance import ToleranceResult as ToleranceResult
+from .tolerance import allocate_grade as allocate_grade

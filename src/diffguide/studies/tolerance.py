@@ -254,8 +254,8 @@ def allocate_grade(machine, positions, *, measure: str, limit: float, probabilit
     k_rank = max(1, math.ceil(n_samples * probability))
     t0 = time.perf_counter()
     model = GaussianRailModel(UNIT, correlation_length, kernel, planes)
-    unit = sample_rails(seed, n_samples, model, None, knots=knots)
-    knots = (unit.start, unit.spacing, unit.n_coeffs)
+    unit_rails = sample_rails(seed, n_samples, model, None, knots=knots)
+    knots = (unit_rails.start, unit_rails.spacing, unit_rails.n_coeffs)
     mount = sample_rails(seed + 10_000, n_samples, None, mounting, knots=knots)
     say = progress or (lambda line: None)
     cache: dict[float, np.ndarray] = {}
@@ -263,7 +263,7 @@ def allocate_grade(machine, positions, *, measure: str, limit: float, probabilit
 
     def sorted_measure(sigma: float) -> np.ndarray:
         if sigma not in cache:
-            res = batched_sweep(machine, _scaled(unit, mount, sigma / UNIT), positions,
+            res = batched_sweep(machine, _scaled(unit_rails, mount, sigma / UNIT), positions,
                                 chunk_size=chunk_size)
             m = np.sort(measure_values(res, measure))
             cache[sigma] = m
@@ -273,11 +273,12 @@ def allocate_grade(machine, positions, *, measure: str, limit: float, probabilit
                 f"(95 % interval {q[0]:.4g} .. {q[2]:.4g}; limit {limit * 1e6:.4g})")
         return cache[sigma]
 
-    what = f"{measure} <= {limit:g} at probability {probability:g}"
+    what = f"{measure} <= {limit * 1e6:g} {unit} at probability {probability:g}"
     if mounting is not None and sorted_measure(0.0)[k_rank - 1] > limit:
         name = getattr(mounting, "name", mounting)
         raise ValueError(f"{what}: straight rails mounted within {name!r} alone give "
-                         f"{sorted_measure(0.0)[k_rank - 1]:.4g} at that probability: no rail "
+                         f"{sorted_measure(0.0)[k_rank - 1] * 1e6:.4g} {unit} at that probability: "
+                         "no rail "
                          "grade meets the limit; choose a tighter mounting class")
     grade = _root(lambda s: sorted_measure(s)[k_rank - 1] - limit, guess, limit, what)
     ends = [_root(lambda s, r=r: sorted_measure(s)[r - 1] - limit, grade, limit, what, END_RTOL)
