@@ -57,12 +57,6 @@ XFAIL: dict[tuple[str, str], str] = {
     "0.5 µm sines at 285/320/363 mm, the wavelengths the planned layout leaves undetermined (the "
     "rails' mean around the carriage spacing, where pitch and yaw cancel); no layout of these "
     "instruments holds them, and the bands say so (test_truth_inside_2_sigma_per_plane)",
-    ("per_plane", "large_rails_horizontal"): _NOW + "±2σ coverage per plane 98/83 % (vertical/"
-    "horizontal; 95/60 % with the Gauss-Newton bands alone): the horizontal mean comes back 54 % "
-    "off (6.9 µm RMS against bands of 4.9 µm RMS) with χ²/dof 5.0 — the fit does not explain "
-    "these data to their σ. The randomised-maximum-likelihood samples widen the bands more the "
-    "further each is solved: 74/78/81/83 % with 12×2, 8×4, 16×4, 16×8 samples × Gauss-Newton "
-    "steps (16×8 the default)",
     ("combinations", "planned_undetermined"): _NOW + "the two planes' means 23/30 % off: that is "
     "where this case's content at the undetermined wavelengths (285-363 mm) sits",
     ("prediction", "rail_joint_step"): _NOW + "prediction at (±300, ±100) mm: 76 % of the "
@@ -73,10 +67,6 @@ XFAIL: dict[tuple[str, str], str] = {
     "positions (ECX z RMS 2.1-3.0 at x = -270 .. +10 mm) while the fit's local residuals there "
     "stay at the noise (whitened RMS 0.8-1.3): nothing in the data flags them, and a posterior "
     "that knows only the spline's content cannot band them (bench/battery_predict.py)",
-    ("prediction", "large_rails_horizontal"): _NOW + "prediction at (±300, ±100) mm: 84.8 % of "
-    "the values inside ±2σ (EXX 88, EYX 88, EZX 88, EAX 92, EBX 67, ECX 87 %), relative errors "
-    "3-8 % but EYX 39 %: the horizontal mean profile comes back 54 % off with χ²/dof 5.0 (the "
-    "per-plane coverage xfail above) and the prediction inherits it",
 }
 
 
@@ -499,7 +489,8 @@ def test_truth_inside_2_sigma_per_plane(name):
     before → after the floor on the undetermined directions (inverse/bands.py) and the
     randomised-maximum-likelihood spread (inverse/spread.py): planned_undetermined 71/91 % →
     100/100 % (σ RMS 0.21 → 0.60 µm against errors of 0.32-0.37 µm RMS);
-    large_rails_horizontal 95/60 % → 98/83 % (an expected failure, XFAIL)."""
+    large_rails_horizontal 95/60 % → 98/83 % → 100/98 % with the knots refined where χ²/dof
+    stayed at 5 (:func:`diffguide.inverse.fit.refine_knots`: 46 → 23 mm, χ²/dof 1.1)."""
     res = result(name)
     assert res.fit is not None, res.error
     sc = res.score
