@@ -28,6 +28,8 @@ bundled data set), :data:`LEVELS_ONLY`, :data:`INTERFEROMETER_ONLY`, :data:`WITH
 """
 
 import dataclasses
+import json
+import os
 import time
 from collections.abc import Callable
 
@@ -700,7 +702,19 @@ _RESULTS: dict[str, CaseResult] = {}
 def result(name: str) -> CaseResult:
     """:func:`run_case` of ``CASES[name]``, run once per process (module-level cache)."""
     if name not in _RESULTS:
-        _RESULTS[name] = run_case(CASES[name]())
+        res = _RESULTS[name] = run_case(CASES[name]())
+        row = {"error": res.error, "seconds": res.seconds}
+        if res.fit is not None:
+            sc, st = res.score, res.fit.structure or {}
+            row.update(chi2_dof=float(res.fit.chi2_dof), converged=bool(res.fit.converged),
+                       knot_spacing=float(res.fit.basis.spacing),
+                       **{k: getattr(sc, k) for k in ("rms_um", "rel", "sigma_rms_um",
+                                                      "coverage", "overall_rms_um",
+                                                      "overall_rel", "overall_sigma_rms_um",
+                                                      "overall_coverage")},
+                       structure={k: [float(v["value"]), float(v["sigma"])]
+                                  for k, v in st.items()})
+        _record("fit", name, row)
     return _RESULTS[name]
 
 
@@ -799,4 +813,22 @@ def prediction_score(name: str) -> PredictionScore:
                                                                   axis=(0, 1))),
             rms_um=np.sqrt(np.mean(err**2, axis=(0, 1))),
             sigma_um=np.sqrt(np.mean(sig**2, axis=(0, 1))), seconds=seconds)
+        _record("prediction", name, dataclasses.asdict(_PREDICTIONS[name]))
     return _PREDICTIONS[name]
+
+
+#: Environment variable naming a JSON-lines file to which every case's scores are appended as
+#: they are computed (the test suite's run then yields the battery's tables: bench/
+#: battery_from_log.py), unset: nothing is written.
+LOG_ENV = "DIFFGUIDE_BATTERY_LOG"
+
+
+def _record(kind: str, name: str, values: dict) -> None:
+    path = os.environ.get(LOG_ENV)
+    if not path:
+        return
+    row = {"kind": kind, "name": name}
+    row.update({k: v if isinstance(v, (dict, str, type(None))) else np.asarray(v).tolist()
+                for k, v in values.items()})
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write(json.dumps(row) + "\n")
