@@ -117,6 +117,7 @@ def test_the_grade_scales_as_the_model_is_linear(machine, allocated):
 def test_plain_monte_carlo_check_holds(allocated):
     c = allocated.check
     assert c is not None and c.n == 128 and c.seed == 1
+    assert c.claimed == pytest.approx(wilson_interval(math.ceil(N * 0.8), N))
     assert c.holds, c
 
 

@@ -66,10 +66,11 @@ def report(res, unit: str) -> str:
                      "breaking the limit)")
     if res.check is not None:
         c = res.check
-        verdict = "holds" if c.holds else "does NOT hold: use more --samples"
+        verdict = ("consistent" if c.holds else "NOT consistent: the search's samples are "
+                   "not representative, use more --samples")
         lines.append(f"check on {c.n} fresh samples at that grade: {c.fraction:.1%} within the "
-                     f"limit (95 % interval {c.interval[0]:.1%} .. {c.interval[1]:.1%}): the "
-                     f"stated {res.probability:.1%} {verdict}")
+                     f"limit (95 % interval {c.interval[0]:.1%} .. {c.interval[1]:.1%}) against "
+                     f"the search's {c.claimed[0]:.1%} .. {c.claimed[1]:.1%}: {verdict}")
     return "\n".join(lines)
 
 
@@ -84,7 +85,8 @@ def as_json(res, unit: str) -> dict:
     if res.check is not None:
         c = res.check
         out["check"] = {"samples": c.n, "seed": c.seed, "fraction": c.fraction,
-                        "interval": list(c.interval), "holds": c.holds}
+                        "interval": list(c.interval), "claimed": list(c.claimed),
+                        "holds": c.holds}
     return out
 
 

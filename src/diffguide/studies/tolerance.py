@@ -24,8 +24,11 @@ meets the limit is the pessimistic end of the grade's interval, ``σ`` where ``m
 optimistic one.
 
 **The check.** A plain Monte Carlo at ``σ*`` on fresh draws (another seed): the fraction of
-samples within the limit, with its Wilson 95 % interval; the allocation holds when ``p`` is
-inside that interval (:attr:`ToleranceCheck.holds`).
+samples within the limit, with its Wilson 95 % interval. At ``σ*`` exactly ``k`` of the
+search's ``n`` draws are within the limit, so the search itself claims the probability
+``k/n`` with the Wilson interval of ``k`` in ``n``; the check holds when the two intervals
+overlap (:attr:`ToleranceCheck.holds`): the fresh draws agree with the allocation within its
+sampling error.
 """
 
 import dataclasses
@@ -135,19 +138,20 @@ def _normal_quantile(q: float) -> float:
 @dataclasses.dataclass(frozen=True)
 class ToleranceCheck:
     """A plain Monte Carlo at the allocated grade on fresh draws: ``fraction`` of ``n`` samples
-    within the limit, its Wilson ``interval``, the ``seed``; ``holds``: the stated probability is
-    inside the interval or below it."""
+    within the limit, its Wilson ``interval``, the ``seed``; ``claimed``: the search's own
+    interval of that probability at the grade (the ``k`` of its ``n`` draws within the limit,
+    Wilson); ``holds``: the two intervals overlap — the fresh draws agree with the allocation
+    within its sampling error."""
 
     fraction: float
     interval: tuple[float, float]
     n: int
     seed: int
-    probability: float
+    claimed: tuple[float, float]
 
     @property
     def holds(self) -> bool:
-        return self.interval[0] <= self.probability <= self.interval[1] or \
-            self.probability < self.interval[0]
+        return self.interval[0] <= self.claimed[1] and self.claimed[0] <= self.interval[1]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -294,7 +298,7 @@ def allocate_grade(machine, positions, *, measure: str, limit: float, probabilit
         inside = int(np.sum(measure_values(res, measure) <= limit))
         check = ToleranceCheck(inside / int(check_samples),
                                wilson_interval(inside, int(check_samples)),
-                               int(check_samples), seed + 1, probability)
+                               int(check_samples), seed + 1, wilson_interval(k_rank, n_samples))
         say(f"  check on {check_samples} fresh draws at {grade * 1e6:.4g} µm: "
             f"{check.fraction:.1%} within the limit (95 % interval {check.interval[0]:.1%} .. "
             f"{check.interval[1]:.1%})")
