@@ -157,6 +157,42 @@ def test_outside_the_measured_range_refused_or_flagged(fitted):
         predict(post, spec, {"R": (0.6, 0.0)}, X)
 
 
+def _rotation(a, b, c):
+    """The exact rotation by roll a (about X), pitch b (about Y), yaw c (about Z)."""
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+    ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
+    rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def test_at_a_tool_point_above_the_table(fitted, prediction):
+    """At height z the table top's point moves with the rigid body above it: its errors are
+    the top's plus the turned lever ``R(EAX, EBX, ECX)(0, 0, z) − (0, 0, z)`` (exact rotation,
+    to its second-order remainder); the σ of EXX(z) = EXX + z·EBX is a quadratic in z whose
+    z² coefficient is σ(EBX)², read from three heights."""
+    _, post, meta, spec = fitted
+    z = 0.3
+    up = predict(post, spec, Q, X, measured_points=meta["points_m"], z=z)
+    e0 = prediction.errors[:, 0]
+    second_order = np.max(np.abs(e0[:, 3:])) ** 2 * z  # the remainder of the small angles
+    for i in range(len(X)):
+        a, b, c = e0[i, 3:]
+        lever = _rotation(a, b, c) @ [0.0, 0.0, z] - [0.0, 0.0, z]
+        np.testing.assert_allclose(up.errors[i, 0, :2], e0[i, :2] + lever[:2], rtol=0,
+                                   atol=second_order)
+    assert np.max(np.abs(up.errors[:, 0, :2] - e0[:, :2])) > 100 * second_order
+    np.testing.assert_allclose(up.errors[:, 0, 2:], e0[:, 2:], rtol=0, atol=0)
+    np.testing.assert_allclose(up.sigma[:, 0, 2:], prediction.sigma[:, 0, 2:], rtol=1e-12)
+    v = [prediction.sigma[:, 0, 0] ** 2, up.sigma[:, 0, 0] ** 2,
+         predict(post, spec, Q, X, measured_points=meta["points_m"], z=2 * z).sigma[:, 0, 0] ** 2]
+    curvature = (v[2] - 2 * v[1] + v[0]) / (2 * z**2)
+    np.testing.assert_allclose(curvature, prediction.sigma[:, 0, 4] ** 2, rtol=1e-6)
+    assert up.z == z
+    with pytest.raises(ValueError, match="height above the table top"):
+        predict(post, spec, Q, X, measured_points=meta["points_m"], z=300.0)
+
+
 def _read_csv(path):
     with open(path, encoding="utf-8") as fh:
         lines = [ln for ln in fh if not ln.startswith("#")]

@@ -38,6 +38,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="positions file: position_mm (instead of --positions-mm)")
     p.add_argument("--extrapolate", action="store_true",
                    help="allow positions outside the measured range (flagged, large σ)")
+    p.add_argument("--z-mm", type=float, default=0.0, metavar="Z",
+                   help="height of the points above the table top (mm; the tool point or a "
+                   "workpiece feature): EXX gains z·EBX and EYX −z·EAX (Abbe), with their σ; "
+                   "default 0, the table top")
     p.add_argument("--out", required=True, metavar="FILE.csv", help="output CSV")
     p.set_defaults(func=run)
     return p
@@ -103,7 +107,7 @@ def run(args) -> int:
     spec = _machine_spec(meta)
     m = meta["machine"]
     pred = predict(post, spec, points, x, measured_points=meta["points_m"], nx=m.get("nx"),
-                   ny=m.get("ny"), extrapolate=args.extrapolate)
+                   ny=m.get("ny"), extrapolate=args.extrapolate, z=args.z_mm * 1e-3)
     src = f"from the fit in {Path(args.fit).resolve()}"
     atomic_write_text(args.out, prediction_csv_text(pred, src, meta.get("x0_mm")))
     _summary(args, pred, time.perf_counter() - t0)

@@ -33,6 +33,11 @@ structure with the measured points and the requested ones (the fit's mesh plus t
 points' lines; the fit's mesh itself when every requested point was measured) and keeps it
 (:data:`MACHINE_CACHE_SIZE` most recent) for the next call.
 
+**Where the tool is.** With a height ``z`` above the table top (the tool point, a workpiece
+feature) the body above the top turns rigidly with it: ``EXX(z) = EXX + z·EBX``,
+``EYX(z) = EYX − z·EAX`` (Abbe), applied to ``e`` and to ``J`` before the σ, so the σ holds the
+correlations (:func:`abbe`).
+
 **Extrapolation.** Positions outside the measured range are refused (``ValueError`` naming the
 range) unless ``extrapolate=True``; then the rails' and lead's end cubics are continued and the
 σ is what that continuation's covariance gives (large, and growing with the distance), each such
@@ -57,7 +62,8 @@ from .posterior import SECANT_STEP_LIMITS
 MACHINE_CACHE_SIZE = 8
 #: A position this far (m) outside the measured range still counts as inside (round-off).
 _X_TOL = 1e-9
-_EXX = ERROR_NAMES.index("EXX")
+_EXX, _EYX = ERROR_NAMES.index("EXX"), ERROR_NAMES.index("EYX")
+_EAX, _EBX = ERROR_NAMES.index("EAX"), ERROR_NAMES.index("EBX")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,7 +136,8 @@ class Prediction:
             ECX (rad), ISO 230-1 signs, relative to ``x_ref``; EXX includes the fitted lead
             error where ``lead`` is True. extrapolated: ``(n_pos,)`` outside the measured
             range. position_range: that range (m). lead: whether a lead error was fitted (EXX
-            data) and is included. x_ref: the reference position (m).
+            data) and is included. x_ref: the reference position (m). z: the points' height
+            above the table top (m).
     """
 
     positions: np.ndarray
@@ -142,6 +149,7 @@ class Prediction:
     position_range: tuple
     lead: bool
     x_ref: float
+    z: float = 0.0
 
     def user_units(self) -> tuple[np.ndarray, np.ndarray]:
         """``(errors, sigma)`` in µm and µrad (:func:`diffguide.machine.errors.to_user`)."""
@@ -255,7 +263,7 @@ def _sweep(post: FitPosterior, machine, x, with_jacobian: bool):
 
 def predict(fit, spec, points, positions, *, measured_points: dict | None = None,
             nx: int | None = None, ny: int | None = None,
-            extrapolate: bool = False) -> Prediction:
+            extrapolate: bool = False, z: float = 0.0) -> Prediction:
     """The six joint errors and their σ at ``points`` over ``positions`` (module docstring).
 
     Arguments:
@@ -267,6 +275,9 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
             ``extrapolate`` (then flagged).
         measured_points: the fit's points ``{name: (x, y)}`` (m), kept in the mesh (the fit's
             mesh lines); default none. nx, ny: the fit's mesh (default the spec's).
+        z: the height (m) of the predicted points above the table top — the tool point or a
+            workpiece feature — within :data:`Z_RANGE`: the table is rigid above its top, so
+            EXX gains ``z·EBX`` and EYX ``−z·EAX`` (Abbe), in the errors and their σ.
 
     Returns a :class:`Prediction`. ``ValueError`` for points off the table, positions as
     above or beyond the stroke, a name given twice with two locations, or an equilibrium that
@@ -289,6 +300,7 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
         allp[k] = v
     machine = _machine(spec, allp, nx, ny, post.structure)
     sel = [list(allp).index(k) for k in pts]
+    z = _check_z(z)
     e, Jm, ok = _sweep(post, machine, x, True)
     if not ok:
         raise ValueError("the fitted model's equilibrium did not converge at some position; "
@@ -308,11 +320,37 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
         B = bspline_matrix(x, ls, lh, ln) - bspline_matrix(np.array([post.x_ref]), ls, lh, ln)
         e[:, :, _EXX] += (B @ post.lead)[:, None]
         J[:, :, _EXX, lo:lo + ln] = B[:, None, :]
+    e, J = abbe(e, z), abbe(J, z)
     sig = np.sqrt(np.maximum(np.einsum("pekv,vw,pekw->pek", J, post.cov, J), 0.0))
     return Prediction(positions=x, point_names=tuple(pts), points_xy=np.array(list(pts.values())),
                       errors=e[:, sel], sigma=sig[:, sel], extrapolated=flags,
                       position_range=tuple(post.position_range), lead=bool(len(post.lead)),
-                      x_ref=float(post.x_ref))
+                      x_ref=float(post.x_ref), z=z)
+
+
+#: Heights above the table top (m) a prediction accepts.
+Z_RANGE = (-0.5, 2.0)
+
+
+def _check_z(z) -> float:
+    z = float(z)
+    if not (np.isfinite(z) and Z_RANGE[0] <= z <= Z_RANGE[1]):
+        raise ValueError(f"z (height above the table top) must lie within [{Z_RANGE[0]:g}, "
+                         f"{Z_RANGE[1]:g}] m, got {z:g} m{mm_hint(z, *Z_RANGE)}")
+    return z
+
+
+def abbe(a: np.ndarray, z: float) -> np.ndarray:
+    """Errors (or their derivatives) ``(..., 6, ...)`` at the table top carried to the height
+    ``z`` (m) above it on the rigid body over the top: a point at ``(0, 0, z)`` turned by the
+    small angles ``(EAX, EBX, ECX)`` moves by ``θ × (0, 0, z) = (z·EBX, −z·EAX, 0)``. The error
+    axis is the one after the point axis (``e[:, :, k]``, ``J[:, :, k, :]``)."""
+    if z == 0.0:
+        return a
+    out = np.array(a, float, copy=True)
+    out[:, :, _EXX] += z * out[:, :, _EBX]
+    out[:, :, _EYX] -= z * out[:, :, _EAX]
+    return out
 
 
 def _thickness_column(post: FitPosterior, spec, allp, nx, ny, x, i) -> np.ndarray:

@@ -79,7 +79,10 @@ def prediction_csv_text(pred, source: str = "", x0_mm: float | None = None) -> s
         f"# signs: ISO 230-1 errors (a controller compensates by their negatives), relative to "
         f"the reference position x = {pred.x_ref * 1e3:g} mm"
         + ("" if x0_mm is None else f" (machine coordinate {x0_mm:g} mm)")
-        + "; at the table top (a tool point z above it adds z*EBX to EXX and -z*EAX to EYX)",
+        + (f"; at {pred.z * 1e3:g} mm above the table top (the tool point: EXX holds z*EBX, "
+           "EYX -z*EAX)" if getattr(pred, "z", 0.0) else
+           "; at the table top (a tool point z above it adds z*EBX to EXX and -z*EAX to EYX: "
+           "diffguide predict --z-mm)"),
         f"# {lead}; straightness (EYX, EZX) in the fit's gauge (the rails' common slope per "
         "plane, which no reading determines, fixed as in the fit)",
         "# sigma: 1 standard deviation from the fit's full posterior (rails, structure, lead "
