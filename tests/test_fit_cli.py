@@ -126,6 +126,7 @@ def test_bad_waviness_is_refused_before_any_work(tmp_path, capsys):
     (["--at", "P9"], "--at must be one of the points P1, P2, P3, P4, P5, got 'P9'"),
     (["--comp-points", "1"], "--comp-points must be in [2, 10000]"),
     (["--tol-um", "-1"], "--tol-um must be a finite number > 0"),
+    (["--at-z-mm", "3000"], "--at-z-mm must be in [-500, 2000] mm"),
 ])
 def test_bad_export_options_are_refused_before_any_work(tmp_path, capsys, args, message):
     """Exit 2 means nothing written: the export's options are checked before the fit."""

@@ -116,6 +116,13 @@ def test_lead_error_is_in_exx_with_its_sigma(fitted, prediction):
     for col, want in (("EXX_um", pr.errors), ("EXX_sigma_um", pr.sigma)):
         np.testing.assert_allclose([float(r[col]) for r in rows], want[:, 0, 0] * 1e6,
                                    atol=1e-3)
+    # and at a tool point 200 mm above the table top: EXX + z·EBX
+    files, _ = fitted_compensation(spec, lead, X * 1e3, "Q", "csv",
+                                   points={**meta["points_m"], **Q}, z=0.2)
+    assert "at 200 mm above the table top" in files[""]
+    rows = list(csv.DictReader(ln for ln in files[""].splitlines() if not ln.startswith("#")))
+    np.testing.assert_allclose([float(r["EXX_um"]) for r in rows],
+                               (pr.errors[:, 0, 0] + 0.2 * pr.errors[:, 0, 4]) * 1e6, atol=1e-3)
 
 
 def _fitted_curve(out, point, quantity):
@@ -234,6 +241,17 @@ def test_command_line_end_to_end(fitted, prediction, tmp_path, capsys):
     assert main(["predict", "--fit", str(tmp_path), "--point", "Q:0,0", "--out",
                  str(tmp_path / "y.csv")]) == 2
     assert "posterior.json: not found" in capsys.readouterr().err
+    # at the tool's height: the CSV says so and holds the Abbe terms
+    z_out = tmp_path / "z.csv"
+    assert main(["predict", "--fit", str(out), "--points", str(pts), "--positions-mm",
+                 "-300:300:5", "--z-mm", "150", "--out", str(z_out), "-q"]) == 0
+    assert "at 150 mm above the table top" in z_out.read_text(encoding="utf-8")
+    got = np.array([float(r["EXX_um"]) for r in _read_csv(z_out)])
+    want = (prediction.errors[:, 0, 0] + 0.15 * prediction.errors[:, 0, 4]) * 1e6
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    assert main(["predict", "--fit", str(out), "--point", "Q:0,0", "--z-mm", "5000", "--out",
+                 str(tmp_path / "w.csv")]) == 2
+    assert "--z-mm must be in [-500, 2000] mm" in capsys.readouterr().err
 
 
 def test_from_fit_refuses_a_fit_without_posterior():

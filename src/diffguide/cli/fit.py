@@ -133,6 +133,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--at", default="P5",
                    help="point of the compensation table: a measured point or a machine "
                    "control point (P1..P5 for majda2012)")
+    p.add_argument("--at-z-mm", type=float, default=0.0, metavar="Z",
+                   help="height of the compensated point above the table top (mm; the tool "
+                   "point): EXX gains z·EBX and EYX −z·EAX, with their σ (default 0)")
     p.add_argument("--tol-um", type=float, default=2.0,
                    help="warn where another point's EXX/EYX/EZX depart from the rigid-body "
                    "prediction from --at by more than this (µm)")
@@ -183,6 +186,8 @@ def _check_inputs(meas, args, cfg):
                              f"got {args.at!r}")
         if not 2 <= args.comp_points <= 10000:
             raise ValueError(f"--comp-points must be in [2, 10000], got {args.comp_points}")
+        if not (np.isfinite(args.at_z_mm) and -500.0 <= args.at_z_mm <= 2000.0):
+            raise ValueError(f"--at-z-mm must be in [-500, 2000] mm, got {args.at_z_mm:g}")
         check_tolerances(args)
         _check_export_options(args)
     from ._report import check_tolerance
@@ -507,7 +512,7 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
         spec, fit, np.linspace(-half, half, args.comp_points), args.at, _export_spec(args),
         points=points, nx=args.nx, ny=args.ny, x0_mm=x0_mm,
         source=f"predicted by the elastic model fitted to {', '.join(args.measurements)}",
-        tol_um=args.tol_um, tol_urad=args.tol_urad)
+        tol_um=args.tol_um, tol_urad=args.tol_urad, z=args.at_z_mm * 1e-3)
     base = Path(args.export_compensation)
     for suffix, text in files.items():
         path = base if not suffix else base.with_name(base.stem + suffix)

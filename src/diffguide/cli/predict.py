@@ -101,6 +101,8 @@ def run(args) -> int:
     from ..io.prediction_csv import prediction_csv_text
 
     t0 = time.perf_counter()
+    if not (np.isfinite(args.z_mm) and -500.0 <= args.z_mm <= 2000.0):
+        raise ValueError(f"--z-mm must be in [-500, 2000] mm, got {args.z_mm:g}")
     post, meta = read_fit_posterior(args.fit)
     points = _points(args)
     x = _positions(args, post)
