@@ -39,6 +39,10 @@ NUT_XY, NUT_FOOT = (0.0, 0.0), (0.05, 0.05)
 POINTS = {"P1": (0.450, 0.200), "P2": (-0.450, 0.200), "P3": (-0.450, -0.200),
           "P4": (0.450, -0.200), "P5": (0.0, 0.0)}
 REF0, ROT0 = 900001, 900101
+#: ``{variant: (plate thickness m, ribs)}``; a rib ``(x, width, depth)`` (m) runs along Y under
+#: the plate, clear of the carriage and nut footprints.
+VARIANTS = {"plate": (THICK, ()),
+            "ribbed": (0.03, ((-0.30, 0.02, 0.04), (0.30, 0.02, 0.04)))}
 #: Lattice offsets of the C3D20R nodes 1-20 (corners, bottom / top edge midpoints, vertical ones).
 CORNER = [(0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (0, 0, 2), (2, 0, 2), (2, 2, 2), (0, 2, 2),
           (1, 0, 0), (2, 1, 0), (1, 2, 0), (0, 1, 0), (1, 0, 2), (2, 1, 2), (1, 2, 2), (0, 1, 2),
@@ -58,14 +62,20 @@ def grid_lines(half, step, extra):
     return lines[np.concatenate([[True], np.diff(lines) > 1e-6])]
 
 
-def build(step=0.025, layers=2):
+def build(step=0.025, layers=2, variant="plate"):
+    """Nodes, elements, rigid footprints and retained points of ``variant`` (:data:`VARIANTS`)."""
+    thick, ribs = VARIANTS[variant]
     ifs = interfaces()
     ex = [v for _, x, _, hx, _ in ifs for v in (x - hx, x, x + hx)]
     ey = [v for _, _, y, _, hy in ifs for v in (y - hy, y, y + hy)]
-    ex += [p[0] for p in POINTS.values()]
+    ex += [p[0] for p in POINTS.values()] + [v for x, w, _ in ribs for v in (x - w / 2, x + w / 2)]
     ey += [p[1] for p in POINTS.values()]
     xs, ys = grid_lines(LENGTH / 2, step, ex), grid_lines(WIDTH / 2, step, ey)
-    zs = np.linspace(-THICK / 2, THICK / 2, layers + 1)
+    zs = np.linspace(-thick / 2, thick / 2, layers + 1)
+    if ribs:  # two brick layers through the ribs' depth, under the plate
+        depth = ribs[0][2]
+        zs = np.concatenate([np.linspace(-thick / 2 - depth, -thick / 2, 3)[:-1], zs])
+    n_below = 2 if ribs else 0
 
     def fine(v):  # corner and mid-edge coordinates
         mid = 0.5 * (v[:-1] + v[1:])
@@ -77,17 +87,24 @@ def build(step=0.025, layers=2):
     def nid(i, j, k):
         return 1 + i + NI * (j + NJ * k)
 
+    def in_rib(x0, x1):
+        return any(x - w / 2 - 1e-9 <= x0 and x1 <= x + w / 2 + 1e-9 for x, w, _ in ribs)
+
+    elements = []
+    for k in range(0, len(Z) - 1, 2):
+        for j in range(0, NJ - 1, 2):
+            for i in range(0, NI - 1, 2):
+                if k // 2 < n_below and not in_rib(X[i], X[i + 2]):
+                    continue
+                elements.append([nid(i + a, j + b, k + c) for a, b, c in CORNER])
     nodes = {}
     for k in range(len(Z)):
         for j in range(NJ):
             for i in range(NI):
                 if (i % 2) + (j % 2) + (k % 2) <= 1:
                     nodes[nid(i, j, k)] = (X[i], Y[j], Z[k])
-    elements = []
-    for k in range(0, len(Z) - 1, 2):
-        for j in range(0, NJ - 1, 2):
-            for i in range(0, NI - 1, 2):
-                elements.append([nid(i + a, j + b, k + c) for a, b, c in CORNER])
+    used = {n for e in elements for n in e}
+    nodes = {n: v for n, v in nodes.items() if n in used}
     ids = np.array(list(nodes))
     xyz = np.array([nodes[n] for n in ids])
 
@@ -104,9 +121,9 @@ def build(step=0.025, layers=2):
     rigid = []
     for name, x, y, hx, hy in ifs:
         inside = ((np.abs(xyz[:, 0] - x) <= hx + 1e-9) & (np.abs(xyz[:, 1] - y) <= hy + 1e-9))
-        rigid.append((name, ids[inside], (x, y, -THICK / 2)))
+        rigid.append((name, ids[inside], (x, y, -thick / 2)))
     points, extra_nodes = {}, {}
-    zt = THICK / 2
+    zt = thick / 2
     for name, (x, y) in POINTS.items():
         node = at(x, y, zt)
         if name == "P5":  # in the nut's rigid footprint
@@ -164,8 +181,8 @@ def retained_dofs(rigid, points):
     return dofs
 
 
-def write(out_dir: Path, step=0.025, layers=2):
-    nodes, elements, rigid, points, _ = build(step, layers)
+def write(out_dir: Path, step=0.025, layers=2, variant="plate"):
+    nodes, elements, rigid, points, _ = build(step, layers, variant)
     dofs = retained_dofs(rigid, points)
     retained_nodes = sorted({n for n, _ in dofs})
     L = ["** diffguide: the majda2012 table as a solid plate, reduced to its retained nodes.",
@@ -192,7 +209,7 @@ def write(out_dir: Path, step=0.025, layers=2):
     L += ["** self-weight with every retained DOF held", "*STEP", "*STATIC",
           "*BOUNDARY, OP=NEW", "RETAINED, 1, 3, 0.", "*DLOAD", f"EALL, GRAV, {G}, 0., 0., -1.",
           "*NODE PRINT, NSET=RETAINED, TOTALS=NO", "RF", "*END STEP"]
-    (out_dir / "plate.inp").write_text("\n".join(L) + "\n")
+    (out_dir / f"{variant}.inp").write_text("\n".join(L) + "\n")
     N = ["** Retained nodes of plate.inp (and the top-face node of P5), m. Order of the",
          "** unit-displacement steps of plate.dat (node, DOF):"]
     N += ["** " + " ".join(f"{n}:{d}" for n, d in dofs[i:i + 8]) for i in range(0, len(dofs), 8)]
@@ -205,7 +222,7 @@ def write(out_dir: Path, step=0.025, layers=2):
         else:
             x, y, z = nodes[n]
         N.append(f"{n}, {x:.9g}, {y:.9g}, {z:.9g}")
-    (out_dir / "plate_nodes.inp").write_text("\n".join(N) + "\n")
+    (out_dir / f"{variant}_nodes.inp").write_text("\n".join(N) + "\n")
     # the self-weight applied at the held nodes (left out of CalculiX's RF): on the retained
     # point nodes directly, on a footprint's nodes as the rigid wrench at its REF / ROT node
     loads = gravity_loads(nodes, elements)
@@ -223,7 +240,20 @@ def write(out_dir: Path, step=0.025, layers=2):
          "** CalculiX's RF leaves these out; f = -RF + these. Total of all nodal loads: "
          f"{sum(loads.values()):.6g} N", "*CLOAD"]
     C += [f"{n}, {d}, {v:.12g}" for (n, d), v in held.items()]
-    (out_dir / "plate_held_loads.inp").write_text("\n".join(C) + "\n")
+    (out_dir / f"{variant}_held_loads.inp").write_text("\n".join(C) + "\n")
+    names = [name for name, _, _ in rigid]
+    T = [f"# The reduced {variant} table of make_plate_deck.py (docs/superelement.md).",
+         'format = "ccx-reactions"', f'matrix = "{variant}.dat"', f'nodes = "{variant}_nodes.inp"',
+         f'held_loads = "{variant}_held_loads.inp"', "length_unit = 1.0",
+         "# the unit-displacement steps, in order: [node, dof]",
+         "dofs = [" + ", ".join(f"[{n}, {d}]" for n, d in dofs) + "]",
+         "", "[rotation_nodes]  # CalculiX ROT NODE = REF NODE"]
+    T += [f'"{ROT0 + k}" = {REF0 + k}' for k in range(len(rigid))]
+    T += ["", "[interfaces]"] + [f"{n} = {REF0 + k}" for k, n in enumerate(names)]
+    for name, (node, nb) in points.items():
+        T += ["", f"[points.{name}]", f"node = {node}"]
+        T += [f"neighbours = {list(nb)}"] if nb else ['rigid_to = "nut"']
+    (out_dir / f"{variant}.toml").write_text("\n".join(T) + "\n")
     return dofs, points
 
 
@@ -231,7 +261,8 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--nx-el", type=float, default=25.0, help="grid step (mm)")
     ap.add_argument("--layers", type=int, default=2, help="elements through the thickness")
+    ap.add_argument("--variant", choices=sorted(VARIANTS), default="plate")
     ap.add_argument("--out", default=str(Path(__file__).parent))
     a = ap.parse_args()
-    dofs, points = write(Path(a.out), a.nx_el / 1000, a.layers)
+    dofs, points = write(Path(a.out), a.nx_el / 1000, a.layers, a.variant)
     print(f"{len(dofs)} retained DOF; points {points}")
