@@ -41,7 +41,8 @@ def _agreement(ei, en):
     return np.abs(ei - en).max(axis=0) / np.maximum(rng, FLOOR * kind)
 
 
-@pytest.mark.parametrize("variant", [1, 2, 3])
+@pytest.mark.parametrize("variant", [pytest.param(1, marks=pytest.mark.slow), 2,
+                                     pytest.param(3, marks=pytest.mark.slow)])
 def test_imported_plate_joint_errors_match_native(machines, variant):
     mi, mn = machines
     rails = dg.paper_variant(variant)

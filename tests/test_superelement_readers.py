@@ -283,3 +283,18 @@ def test_weight_at_interfaces_statics():
     np.testing.assert_allclose(f[:, 2].sum(), -1000.0)
     np.testing.assert_allclose((f[:, 2] * ref[:, 0]).sum(), -1000.0 * 0.05)
     np.testing.assert_allclose((f[:, 2] * ref[:, 1]).sum(), -1000.0 * 0.02)
+
+
+def test_real_ccx_substructure_file_is_read_and_its_uncondensed_matrix_refused():
+    """A ``.mtx`` that CalculiX 2.20 wrote (deck alongside): the reader takes its layout; its
+    matrix is the retained nodes' own element stiffness, not condensed (that version's
+    ``*SUBSTRUCTURE GENERATE``), so a free-floating part shows no rigid-body null space and the
+    check refuses it."""
+    from pathlib import Path
+
+    data = Path(__file__).parent / "data" / "superelement"
+    rm = read_user_element_matrix(data / "ccx220_substructure.mtx")
+    assert len(rm.dofs) == 24 and rm.dofs[:4] == ((1, 1), (1, 2), (1, 3), (2, 1))
+    coords = read_inp_nodes(data / "ccx220_substructure.inp")
+    with pytest.raises(ValueError, match="does not leave the table's rigid motions free"):
+        check_rigid_modes(rm, coords)
