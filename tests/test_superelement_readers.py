@@ -298,3 +298,17 @@ def test_real_ccx_substructure_file_is_read_and_its_uncondensed_matrix_refused()
     coords = read_inp_nodes(data / "ccx220_substructure.inp")
     with pytest.raises(ValueError, match="does not leave the table's rigid motions free"):
         check_rigid_modes(rm, coords)
+
+
+def test_scaled_table_is_the_table_of_the_scaled_matrix():
+    from diffguide.fe.superelement import scaled_table
+
+    rm, coords = two_element_beam(1e3)
+    pts = [RetainedPoint(name="mid", node=2)]
+    base = table_from_reduced(rm, coords, [1, 3], pts)
+    stiff = table_from_reduced(ReducedMatrix(K=1.5 * rm.K, dofs=rm.dofs, f=rm.f), coords, [1, 3],
+                               pts)
+    got = scaled_table(base, 1.5)
+    for name in ("K", "f", "R", "r0"):
+        np.testing.assert_allclose(getattr(got, name), getattr(stiff, name), rtol=1e-12,
+                                   atol=1e-12 * float(np.abs(getattr(stiff, name)).max()))

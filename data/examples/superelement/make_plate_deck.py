@@ -42,6 +42,7 @@ REF0, ROT0 = 900001, 900101
 #: ``{variant: (plate thickness m, ribs)}``; a rib ``(x, width, depth)`` (m) runs along Y under
 #: the plate, clear of the carriage and nut footprints.
 VARIANTS = {"plate": (THICK, ()),
+            "thin": (0.02, ()),
             "ribbed": (0.03, ((-0.30, 0.02, 0.04), (0.30, 0.02, 0.04)))}
 #: Lattice offsets of the C3D20R nodes 1-20 (corners, bottom / top edge midpoints, vertical ones).
 CORNER = [(0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (0, 0, 2), (2, 0, 2), (2, 2, 2), (0, 2, 2),

@@ -85,6 +85,9 @@ from .superelement import (
     check_rigid_modes as check_rigid_modes,
 )
 from .superelement import (
+    scaled_table as scaled_table,
+)
+from .superelement import (
     table_from_reduced as table_from_reduced,
 )
 from .superelement import (

@@ -295,3 +295,14 @@ def table_from_reduced(
         ref_points=jnp.asarray(ref),
         nodes=jnp.zeros((0, 3)),
     )
+
+
+def scaled_table(table: CondensedTable, scale) -> CondensedTable:
+    """``table`` with its stiffness scaled by ``scale`` (> 0; may be traced): the imported
+    matrix's one structural unknown for a fit (its thickness has no meaning). ``K_r → s K_r``
+    scales ``K`` by ``s``, leaves ``R`` (a ratio of stiffnesses) and ``f`` (the loads) unchanged,
+    and divides ``r0`` (the sag under the loads) by ``s``; exact, closed form."""
+    s = jnp.asarray(scale, dtype=float)
+    return CondensedTable(K=s * table.K, f=table.f, R=table.R, r0=table.r0 / s,
+                          node_modes=table.node_modes, node_u0=table.node_u0 / s,
+                          ref_points=table.ref_points, nodes=table.nodes)
