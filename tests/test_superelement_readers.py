@@ -312,3 +312,35 @@ def test_scaled_table_is_the_table_of_the_scaled_matrix():
     for name in ("K", "f", "R", "r0"):
         np.testing.assert_allclose(getattr(got, name), getattr(stiff, name), rtol=1e-12,
                                    atol=1e-12 * float(np.abs(getattr(stiff, name)).max()))
+
+
+def test_description_file_in_mm_with_rotation_nodes(tmp_path):
+    """The beam written in mm and N (K in N/mm, N, N·mm), node 3's rotations on a CalculiX
+    rotation node 30, as a .mtx + description file: read back in SI it is the beam."""
+    from diffguide.io.superelement_file import load_imported_table
+
+    rm, coords = two_element_beam(0.0)
+    rot = np.array([d > 3 for _, d in rm.dofs])
+    s = np.where(rot, 1.0, 1e3)  # u_mm = 1000 u_m; rotations unchanged
+    # F_file = m F (forces in N, moments in N·mm: m = 1000), u_file = s u: K_file = m K s⁻¹
+    K_mm = np.diag(np.where(rot, 1e3, 1.0)) @ rm.K @ np.diag(1 / s)
+    dofs = [(30, d - 3) if (n == 3 and d > 3) else (n, d) for n, d in rm.dofs]
+    nodes = [n for n, _ in dofs]
+    lines = ["*USER ELEMENT, NODES=18, LINEAR", "** ELEMENT NODES",
+             "** " + ", ".join(map(str, nodes)), str(dofs[0][1])]
+    lines += [f"{k + 1}, {d}" for k, (_, d) in enumerate(dofs) if k > 0]
+    lines.append("*MATRIX, TYPE=STIFFNESS")
+    lines += [", ".join(f"{v:.17e}" for v in K_mm[i, :i + 1]) + "," for i in range(18)]
+    (tmp_path / "beam.mtx").write_text("\n".join(lines) + "\n")
+    (tmp_path / "beam_nodes.inp").write_text(
+        "*NODE\n" + "".join(f"{n}, {1e3 * x}, {1e3 * y}, {1e3 * z}\n"
+                            for n, (x, y, z) in coords.items()))
+    (tmp_path / "beam.toml").write_text(
+        'format = "ccx-mtx"\nmatrix = "beam.mtx"\nnodes = "beam_nodes.inp"\n'
+        'length_unit = 0.001\n[rotation_nodes]\n"30" = 3\n[interfaces]\na = 1\nb = 3\n'
+        '[points.mid]\nnode = 2\n')
+    data = load_imported_table(tmp_path / "beam.toml")
+    order = [data.matrix.dofs.index(d) for d in rm.dofs]
+    np.testing.assert_allclose(data.matrix.K[np.ix_(order, order)], rm.K, rtol=1e-12,
+                               atol=1e-9 * np.abs(rm.K).max())
+    np.testing.assert_allclose(data.coords[3], coords[3])

@@ -97,8 +97,8 @@ class ReducedMatrix(eqx.Module):
         """The matrix in SI from a file in length unit ``length_unit`` (m per unit, e.g. 1e-3
         for mm) and N: translations ``u = L u'``, moments ``M = L M'``, so
         ``K_tt = K'_tt / L``, ``K_tr = K'_tr``, ``K_rr = L K'_rr``, ``f_t = f'_t``,
-        ``f_r = L f'_r`` (rotation DOF: 4-6; a rotation node's DOF are converted by
-        :func:`table_from_reduced`'s caller through :func:`with_rotation_nodes` first)."""
+        ``f_r = L f'_r`` (rotation DOF: 4-6, so merge a CalculiX rotation node's DOF with
+        :func:`with_rotation_nodes` first)."""
         rot = np.array([d > 3 for _, d in self.dofs])
         s = np.where(rot, 1.0, 1.0 / length_unit)  # u' = s u
         L = float(length_unit)

@@ -86,16 +86,16 @@ def load_imported_table(path: str | os.PathLike) -> ImportedTable:
     base = path.parent
     matrix = base / cfg["matrix"]
     if fmt in ("ccx-mtx", "abaqus-mtx"):
-        rm = se.read_user_element_matrix(matrix, length_unit=unit)
+        rm = se.read_user_element_matrix(matrix)
     elif fmt == "dmig":
-        rm = se.read_dmig(matrix, cfg.get("dmig_name"), length_unit=unit)
+        rm = se.read_dmig(matrix, cfg.get("dmig_name"))
     else:
         dofs = cfg.get("dofs")
         if not isinstance(dofs, list) or not all(
                 isinstance(d, list) and len(d) == 2 for d in dofs):
             _bad(path, "dofs", "a list of [node, dof] pairs in the order of the steps")
         held = se.read_cload(base / cfg["held_loads"]) if "held_loads" in cfg else None
-        rm = se.reduced_from_reactions(matrix, dofs, held_loads=held, length_unit=unit)
+        rm = se.reduced_from_reactions(matrix, dofs, held_loads=held)
     rot = {}
     for k, v in cfg.get("rotation_nodes", {}).items():
         if not k.isdigit():
@@ -103,6 +103,8 @@ def load_imported_table(path: str | os.PathLike) -> ImportedTable:
         rot[int(k)] = _node(path, f"rotation_nodes.{k}", v)
     if rot:
         rm = with_rotation_nodes(rm, rot)
+    if unit != 1.0:  # after the rotation nodes are known: their DOF 1-3 are rotations
+        rm = rm.scaled(unit)
     coords = se.read_inp_nodes(base / cfg["nodes"], length_unit=unit)
     interfaces = {str(k): _node(path, f"interfaces.{k}", v) for k, v in cfg["interfaces"].items()}
     points = {}
