@@ -112,6 +112,7 @@ def test_missing_point_and_misplaced_node_are_named():
         imported_table(spec, data.matrix, data.coords, bad, points)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not installed")
 def test_ccx_rerun_coarse_deck(tmp_path):
     """Re-run the deck with ccx (a coarse mesh: 100 mm, one layer; ~40 s): its reduced matrix
