@@ -8,7 +8,8 @@ nodes. Agreement is measured as in
 ``test_calculix_reference.py``: ``|imported - native|`` over the stroke, as a fraction of each
 error's range at each point, ranges below 15 % of the largest range of the same kind (µm / µrad)
 held to that floor. Measured (native mesh 40 x 20; docs/superelement.md): plate 0.4, 3.1,
-1.7 % for the paper's variants 1, 2, 3; ribbed 0.3, 3.5, 3.6 %. The difference is the
+1.7 % for the paper's variants 1, 2, 3; a 20 mm plate ("thin") 0.3, 2.2, 1.5 %; ribbed 0.3, 3.5,
+3.6 %. The difference is the
 shell-versus-brick model (for the 50 mm plate the vertical stiffness at a carriage differs by
 2 % with both meshes refined), not the import, which the closed-form tests of
 ``test_superelement_readers.py`` check exactly.
@@ -30,8 +31,9 @@ from diffguide.io.superelement_file import imported_machine, load_imported_table
 from diffguide.machine.imported import imported_table
 
 EXAMPLE = Path(__file__).parents[1] / "data" / "examples" / "superelement"
-#: of each error's range (with the 15 % floor); the measured worst: plate 3.1 %, ribbed 3.6 %
-TOL = {"plate": 0.04, "ribbed": 0.045}
+#: of each error's range (with the 15 % floor); the measured worst: plate 3.1 %, thin 2.2 %,
+#: ribbed 3.6 %
+TOL = {"plate": 0.04, "thin": 0.03, "ribbed": 0.045}
 FLOOR = 0.15
 _CACHE = {}
 
@@ -39,6 +41,8 @@ _CACHE = {}
 def example_spec(name):
     """The machine of the example ``name``: ``majda2012`` with the deck's table."""
     spec = dg.machine.majda2012_spec()
+    if name == "thin":  # the same plate 20 mm thick
+        spec = eqx.tree_at(lambda m: m.table.thickness, spec, 0.02)
     if name == "ribbed":  # a 30 mm plate on two transverse 20 x 40 mm ribs (make_plate_deck.py)
         spec = eqx.tree_at(lambda m: m.table.thickness, spec, 0.03)
         spec = dataclasses.replace(spec, ribs=(Rib("y", -0.3, 0.02, 0.04),
@@ -72,7 +76,8 @@ SLOW = pytest.mark.slow
 
 @pytest.mark.parametrize("name, variant", [
     pytest.param("plate", 1, marks=SLOW), ("plate", 2), pytest.param("plate", 3, marks=SLOW),
-    pytest.param("ribbed", 1, marks=SLOW), pytest.param("ribbed", 2, marks=SLOW),
+    pytest.param("thin", 1, marks=SLOW), pytest.param("thin", 2, marks=SLOW),
+    pytest.param("thin", 3, marks=SLOW), pytest.param("ribbed", 1, marks=SLOW), pytest.param("ribbed", 2, marks=SLOW),
     pytest.param("ribbed", 3, marks=SLOW)])
 def test_imported_joint_errors_match_native(machines, name, variant):
     mi, mn = example_machines(name)
