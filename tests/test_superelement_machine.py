@@ -77,8 +77,8 @@ SLOW = pytest.mark.slow
 @pytest.mark.parametrize("name, variant", [
     pytest.param("plate", 1, marks=SLOW), ("plate", 2), pytest.param("plate", 3, marks=SLOW),
     pytest.param("thin", 1, marks=SLOW), pytest.param("thin", 2, marks=SLOW),
-    pytest.param("thin", 3, marks=SLOW), pytest.param("ribbed", 1, marks=SLOW), pytest.param("ribbed", 2, marks=SLOW),
-    pytest.param("ribbed", 3, marks=SLOW)])
+    pytest.param("thin", 3, marks=SLOW), pytest.param("ribbed", 1, marks=SLOW),
+    pytest.param("ribbed", 2, marks=SLOW), pytest.param("ribbed", 3, marks=SLOW)])
 def test_imported_joint_errors_match_native(machines, name, variant):
     mi, mn = example_machines(name)
     rails = dg.paper_variant(variant)
