@@ -1,15 +1,18 @@
 """Write the CalculiX deck that reduces the ``majda2012`` table (a solid plate) to the retained
 nodes diffguide needs, and the node file of those nodes.
 
-    python make_plate_deck.py [--nx-el 25] [--layers 2]   # writes plate.inp, plate_nodes.inp
-    ccx plate                                              # writes plate.dat (the reactions)
+    python make_plate_deck.py [--variant plate|thin|ribbed] [--nx-el 25] [--layers 2]
+        # writes plate.inp (the deck), plate_nodes.inp (the retained nodes), plate_held_loads.inp
+        # (the self-weight at the held nodes) and plate.toml (the description diffguide reads)
+    ccx plate   # writes plate.dat (the reactions; 10 min on one core for the 25 mm grid)
 
-The plate: 1000 x 500 x 50 mm, cast iron (E 110 GPa, nu 0.26, 7200 kg/m3), C3D20R bricks on a
+The plate (``thin``: 20 mm thick; ``ribbed``: 30 mm on two transverse ribs 20 x 40 mm at
+x = -/+300 mm): 1000 x 500 x 50 mm, cast iron (E 110 GPa, nu 0.26, 7200 kg/m3), C3D20R bricks on a
 grid with lines every ``--nx-el`` mm plus the footprint edges and the control points, ``--layers``
 elements through the thickness. Units: SI (m, N, Pa, kg/m3). Origin: the table centre, the plate
 mid-surface at z = 0 (top face z = +25 mm, underside -25 mm).
 
-Retained nodes (the numbering :mod:`diffguide.io.superelement` is told in the tests and docs):
+Retained nodes (named for diffguide in the description file, ``plate.toml``):
 
 - carriages C11, C12, C21, C22 (rail at y = -170 / +170 mm, carriage at x = -160 / +160 mm), then
   the nut at (0, 0): ``*RIGID BODY`` over every node of the footprint (60 x 48 mm; the nut's
@@ -22,7 +25,8 @@ Retained nodes (the numbering :mod:`diffguide.io.superelement` is told in the te
 
 The steps: one ``*STATIC`` step per retained DOF, that DOF moved by 1 (m or rad) with every other
 retained DOF held (the columns of the reduced stiffness are the reactions RF), then one step with
-every retained DOF held under gravity (the reduced self-weight loads are -RF). This is what
+every retained DOF held under gravity (the reduced self-weight loads are -RF plus the loads at
+the held nodes themselves, which CalculiX's RF leaves out: ``plate_held_loads.inp``). This is what
 ``*SUBSTRUCTURE GENERATE`` is documented to do; the CalculiX 2.20 of Debian 12 writes the
 uncondensed K_bb there instead (checked: no rigid-body null space), hence the explicit steps.
 """
