@@ -70,6 +70,8 @@ _LAZY = {
     "Machine": ".machine",
     "MachineState": ".machine",
     "build_machine": ".machine",
+    "build_imported_machine": ".machine",
+    "machine_from_table": ".machine",
     "equilibrium": ".machine",
     "error_field": ".machine",
     "joint_errors": ".machine",

@@ -75,6 +75,27 @@ from .mesh import (
 )
 from .shell import shell_load as shell_load
 from .shell import shell_stiffness as shell_stiffness
+from .superelement import (
+    ReducedMatrix as ReducedMatrix,
+)
+from .superelement import (
+    RetainedPoint as RetainedPoint,
+)
+from .superelement import (
+    check_rigid_modes as check_rigid_modes,
+)
+from .superelement import (
+    scaled_table as scaled_table,
+)
+from .superelement import (
+    table_from_reduced as table_from_reduced,
+)
+from .superelement import (
+    weight_at_interfaces as weight_at_interfaces,
+)
+from .superelement import (
+    with_rotation_nodes as with_rotation_nodes,
+)
 from .table import TableModel as TableModel
 from .table import TableSpec as TableSpec
 from .table import table_model as table_model

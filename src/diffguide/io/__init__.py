@@ -11,3 +11,13 @@ from .config import load_config as load_config
 from .config import spec_from_config as spec_from_config
 from .rails_csv import read_rails_csv as read_rails_csv
 from .rails_csv import read_rails_samples as read_rails_samples
+from .superelement import SuperelementFileError as SuperelementFileError
+from .superelement import read_ccx_reactions as read_ccx_reactions
+from .superelement import read_cload as read_cload
+from .superelement import read_dmig as read_dmig
+from .superelement import read_inp_nodes as read_inp_nodes
+from .superelement import read_user_element_matrix as read_user_element_matrix
+from .superelement import reduced_from_reactions as reduced_from_reactions
+from .superelement_file import ImportedTable as ImportedTable
+from .superelement_file import imported_machine as imported_machine
+from .superelement_file import load_imported_table as load_imported_table

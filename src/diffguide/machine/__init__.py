@@ -3,6 +3,7 @@ every table position; joint kinematic errors at points on the table; the ``majda
 
 from .._core.result import RESULTS as RESULTS
 from .build import build_machine as build_machine
+from .build import machine_from_table as machine_from_table
 from .build import table_from_spec as table_from_spec
 from .build import with_overrides as with_overrides
 from .equilibrium import DOF_SCALE as DOF_SCALE
@@ -12,6 +13,9 @@ from .equilibrium import equilibrium as equilibrium
 from .equilibrium import node_motion as node_motion
 from .equilibrium import point_motion as point_motion
 from .equilibrium import rigid_body_map as rigid_body_map
+from .imported import build_imported_machine as build_imported_machine
+from .imported import imported_table as imported_table
+from .imported import interface_names as interface_names
 from .kinematics import ERROR_NAMES as ERROR_NAMES
 from .kinematics import JointErrors as JointErrors
 from .kinematics import error_field as error_field

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..fe.condense import CondensedTable
 from ..fe.table import TableModel, table_model
 from ..guideway.carriage import carriage_from_spec
 from .equilibrium import Machine
@@ -179,16 +180,42 @@ def build_machine(spec: MachineSpec | None = None, **overrides) -> Machine:
     else:
         nodes, ref_xy, carriage_x = _moved_carriages(model, spec.guideway.carriage_x, spacing)
         table = model.condense(nodes=nodes, ref_xy=ref_xy)
+    return _assemble(spec, table, carriage_x, carriage_rail, model.point_names, model.points)
+
+
+def _assemble(spec, table, carriage_x, carriage_rail, point_names, points) -> Machine:
     s = spec.screw
     return Machine(
         table=table,
         carriage=carriage_from_spec(spec.carriage),
         carriage_x=carriage_x,
         carriage_rail=tuple(carriage_rail),
-        point_names=model.point_names,
-        points_xy=np.asarray(model.points),
+        point_names=tuple(point_names),
+        points_xy=np.asarray(points, dtype=float).reshape(-1, 2),
         screw_EA=s.E * np.pi * s.core_diameter**2 / 4,
         screw_length_ref=s.free_length_at_ref,
         stroke=None if spec.stroke is None else float(spec.stroke),
     )
+
+
+def machine_from_table(spec: MachineSpec, table: CondensedTable) -> Machine:
+    """The machine of ``spec`` on a table condensed elsewhere (e.g. imported from an FE code,
+    :func:`~diffguide.machine.imported.imported_table`) in place of its plate: the carriages,
+    screw and control points of ``spec``; ``table``'s interfaces must be the carriages (rail
+    by rail, carriages in the order of ``guideway.carriage_x``) then the nut, its point rows
+    those of ``spec.points`` in order. The table's ``[table]`` plate fields are not used."""
+    g = spec.guideway
+    n_c = len(g.rail_y) * len(g.carriage_x)
+    m = np.shape(table.K)[0]
+    if m != 6 * (n_c + 1):
+        raise ValueError(f"the table has {m} interface DOF; this machine's {n_c} carriages and "
+                         f"its nut need {6 * (n_c + 1)}")
+    names = tuple(n for n, _ in spec.points)
+    if np.shape(table.R)[0] != 6 * len(names):
+        raise ValueError(f"the table has {np.shape(table.R)[0] // 6} control points; the "
+                         f"machine has {len(names)} ({', '.join(names)})")
+    carriage_x = np.asarray([cx for _ in g.rail_y for cx in g.carriage_x], dtype=float)
+    carriage_rail = [r for r in range(len(g.rail_y)) for _ in g.carriage_x]
+    return _assemble(spec, table, carriage_x, carriage_rail, names,
+                     [xy for _, xy in spec.points])
 

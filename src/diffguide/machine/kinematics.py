@@ -236,6 +236,11 @@ def error_field(machine: Machine, errors: JointErrors, index: int):
                 f"got {k}"
             )
         index = k
+    if np.shape(machine.table.nodes)[0] == 0:
+        raise ValueError(
+            "error_field: this table has no mesh nodes (a table imported as a reduced matrix "
+            "knows only its retained nodes); use the control points (joint_errors), or retain "
+            "more nodes as control points")
     half_t = -machine.table.ref_points[0, 2]  # the carriage patches sit on the underside
     offset = jnp.array([0.0, 0.0, 1.0]) * half_t
 
