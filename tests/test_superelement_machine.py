@@ -142,3 +142,29 @@ def test_ccx_rerun_coarse_deck(tmp_path):
     spec = dg.machine.majda2012_spec()
     m = imported_machine(spec, tmp_path / "plate.toml")
     assert m.table.K.shape == (30, 30)
+
+
+def test_stiffness_scale_is_differentiable(machines):
+    """The imported table's one structural unknown for a fit, a stiffness scale ``s``
+    (:func:`~diffguide.fe.superelement.scaled_table`): the joint errors' derivative by ``s``
+    (implicit, through the equilibrium) equals the central finite difference."""
+    import jax
+    import jax.numpy as jnp
+
+    from diffguide.fe.superelement import scaled_table
+
+    mi, _ = machines
+    spec = example_spec("plate")
+    rails = dg.paper_variant(3)
+    xs = jnp.array([-0.3, 0.0, 0.3])
+
+    def errors(s):
+        m = dg.machine_from_table(spec, scaled_table(mi.table, s))
+        return dg.joint_errors(m, rails, xs, 0.0).errors
+
+    _, d = jax.jvp(errors, (1.5,), (1.0,))
+    h = 1e-4
+    fd = (errors(1.5 + h) - errors(1.5 - h)) / (2 * h)
+    scale = float(jnp.abs(fd).max())
+    assert scale > 0
+    np.testing.assert_allclose(np.asarray(d), np.asarray(fd), rtol=0, atol=1e-6 * scale)
