@@ -97,6 +97,15 @@ def test_imported_table_statics(machines):
     # free-floating: the six rigid motions of the interfaces cost no force
     Phi = dg.machine.rigid_body_map(t.ref_points)
     assert np.abs(np.asarray(t.K) @ np.asarray(Phi)).max() < 1e-6 * np.abs(np.asarray(t.K)).max()
+    # a rigid motion of the interfaces moves each point rigidly (points on the top face; the
+    # rotations of P1-P4 fitted from their neighbours), to the 7 digits of ccx's .dat: 1e-4
+    data = load_imported_table(EXAMPLE / "plate.toml")
+    q = np.array([1e-6, -2e-6, 3e-6, 2e-6, -1e-6, 3e-6])  # (t, θ) at the origin
+    got = np.asarray(t.R) @ (np.asarray(Phi) @ q)
+    for j, (name, _) in enumerate(dg.machine.majda2012_spec().points):
+        p = np.asarray(data.coords[data.points[name][0].node])
+        want = np.concatenate([q[:3] + np.cross(q[3:], p), q[3:]])
+        np.testing.assert_allclose(got[6 * j:6 * j + 6], want, rtol=0, atol=3e-4 * np.abs(q).max())
     with pytest.raises(ValueError, match="no mesh nodes"):
         res = dg.joint_errors(mi, dg.paper_variant(1), np.array([0.0, 0.1]), 0.0)
         dg.error_field(mi, res, 0)
@@ -133,3 +142,29 @@ def test_ccx_rerun_coarse_deck(tmp_path):
     spec = dg.machine.majda2012_spec()
     m = imported_machine(spec, tmp_path / "plate.toml")
     assert m.table.K.shape == (30, 30)
+
+
+def test_stiffness_scale_is_differentiable(machines):
+    """The imported table's one structural unknown for a fit, a stiffness scale ``s``
+    (:func:`~diffguide.fe.superelement.scaled_table`): the joint errors' derivative by ``s``
+    (implicit, through the equilibrium) equals the central finite difference."""
+    import jax
+    import jax.numpy as jnp
+
+    from diffguide.fe.superelement import scaled_table
+
+    mi, _ = machines
+    spec = example_spec("plate")
+    rails = dg.paper_variant(3)
+    xs = jnp.array([-0.3, 0.0, 0.3])
+
+    def errors(s):
+        m = dg.machine_from_table(spec, scaled_table(mi.table, s))
+        return dg.joint_errors(m, rails, xs, 0.0).errors
+
+    _, d = jax.jvp(errors, (1.5,), (1.0,))
+    h = 1e-4
+    fd = (errors(1.5 + h) - errors(1.5 - h)) / (2 * h)
+    scale = float(jnp.abs(fd).max())
+    assert scale > 0
+    np.testing.assert_allclose(np.asarray(d), np.asarray(fd), rtol=0, atol=1e-6 * scale)
