@@ -33,6 +33,7 @@ sampling error.
 
 import dataclasses
 import math
+import statistics
 import time
 from collections.abc import Callable
 
@@ -116,23 +117,11 @@ def order_statistic_bounds(n: int, p: float, confidence: float = CONFIDENCE) -> 
 
 def wilson_interval(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
     """Wilson score interval of a binomial proportion ``k / n`` (two-sided)."""
-    z = _normal_quantile(0.5 + confidence / 2)
+    z = statistics.NormalDist().inv_cdf(0.5 + confidence / 2)
     p = k / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
     return max(0.0, centre - half), min(1.0, centre + half)
-
-
-def _normal_quantile(q: float) -> float:
-    """Standard normal quantile by bisection on ``erf`` (|error| < 1e-12)."""
-    lo, hi = -10.0, 10.0
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        if 0.5 * (1 + math.erf(mid / math.sqrt(2))) < q:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
 
 
 @dataclasses.dataclass(frozen=True)
