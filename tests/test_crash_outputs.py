@@ -239,3 +239,26 @@ def test_random_kills_and_ctrl_cs_during_fit_leave_a_complete_result(tmp_path):
     assert tally["killed"] + tally["interrupted"] >= 12, tally  # most runs were really stopped
     assert tally["exit_130"] == tally["interrupted"]
     assert json.loads((out / "report.json").read_text())
+
+
+def test_an_interrupt_recorded_before_a_nested_install_is_kept():
+    """The ``diffguide`` command installs the recording handler and then ``main`` installs it
+    again: a Ctrl-C between the two whose exception was lost must still count."""
+    from diffguide.cli import _interrupt
+
+    outer = _interrupt.install()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            signal.raise_signal(signal.SIGINT)  # recorded; the exception "lost" (caught here)
+        inner = _interrupt.install()  # main()'s own install
+        assert inner is _interrupt._handler
+        assert _interrupt.interrupted()
+        _interrupt.restore(inner)
+    finally:
+        _interrupt.restore(outer)
+    assert signal.getsignal(signal.SIGINT) is outer
+    _interrupt.install()  # a fresh command (the handler not installed): the record is cleared
+    try:
+        assert not _interrupt.interrupted()
+    finally:
+        _interrupt.restore(outer)

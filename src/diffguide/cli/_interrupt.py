@@ -25,11 +25,17 @@ def _handler(signum, frame):
 
 def install():
     """Install the recording SIGINT handler (main thread only; elsewhere nothing is done) and
-    clear the record. Returns the previous handler, for :func:`restore`, or ``None``."""
+    clear the record. Returns the previous handler, for :func:`restore`, or ``None``.
+
+    Installed inside an installed handler (the ``diffguide`` command installs it, then the
+    command's :func:`~diffguide.cli.main` does), the record is kept: a Ctrl-C that arrived
+    between the two, its exception lost, still counts."""
     global _count
-    _count = 0
     if threading.current_thread() is not threading.main_thread():
+        _count = 0
         return None
+    if signal.getsignal(signal.SIGINT) is not _handler:
+        _count = 0
     return signal.signal(signal.SIGINT, _handler)
 
 
