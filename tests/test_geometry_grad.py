@@ -58,7 +58,8 @@ def _traced(p):
 def _rails(scale):
     """Rails with spline errors in both planes, ``scale`` × a 3 µm coefficient scatter."""
     c = scale * np.random.default_rng(7).normal(scale=3e-6, size=4 * N)
-    return (SplineRail(-0.6, 0.1, c[:N], c[N:2 * N]), SplineRail(-0.6, 0.1, c[2 * N:3 * N], c[3 * N:]))
+    r1 = SplineRail(-0.6, 0.1, c[:N], c[N:2 * N])
+    return r1, SplineRail(-0.6, 0.1, c[2 * N:3 * N], c[3 * N:])
 
 
 def _objective(machine, rails):
@@ -88,11 +89,14 @@ def test_moved_layout_is_the_rebuilt_mesh(k, delta):
     _assert_same_machine(_traced(jnp.asarray(p)), _rebuilt(p))
 
 
+#: the objective's gradient w.r.t. all five variables, one traced program (rails an argument)
+_gradient = eqx.filter_jit(jax.jacfwd(lambda p, rails: _objective(_traced(p), rails)))
+
+
 def _gradient_against_rebuilt(p0, rails, steps):
-    """jacfwd of the objective w.r.t. all five variables (one traced program) and central
-    differences of rebuilt machines, each step ``steps[i]`` (m)."""
-    f = eqx.filter_jit(lambda p: _objective(_traced(p), rails))
-    grad = np.asarray(jax.jacfwd(f)(jnp.asarray(p0)))
+    """jacfwd of the objective w.r.t. all five variables and central differences of rebuilt
+    machines, each step ``steps[i]`` (m); and the objective's value."""
+    grad = np.asarray(_gradient(jnp.asarray(p0), rails))
     fd = []
     for i, h in enumerate(steps):
         up, down = p0.copy(), p0.copy()
@@ -100,7 +104,7 @@ def _gradient_against_rebuilt(p0, rails, steps):
         down[i] -= h
         fd.append((float(_objective(_rebuilt(up), rails))
                    - float(_objective(_rebuilt(down), rails))) / (2 * h))
-    return grad, np.array(fd), float(f(jnp.asarray(p0)))
+    return grad, np.array(fd), float(_objective(_rebuilt(p0), rails))
 
 
 def test_gradient_is_the_derivative_of_rebuilt_machines():
