@@ -24,6 +24,8 @@ from .majda2012 import majda2012_machine as majda2012_machine
 from .majda2012 import majda2012_spec as majda2012_spec
 from .majda2012 import majda2012_table as majda2012_table
 from .majda2012 import paper_variant as paper_variant
+from .morph import LAYOUT_VARIABLES as LAYOUT_VARIABLES
+from .morph import GeometryRangeError as GeometryRangeError
 from .spec import GuidewaySpec as GuidewaySpec
 from .spec import MachineSpec as MachineSpec
 from .spec import ScrewSpec as ScrewSpec

@@ -220,6 +220,13 @@ def machine_from_table(spec: MachineSpec, table: CondensedTable) -> Machine:
     those of ``spec.points`` in order. The table's ``[table]`` plate fields are not used."""
     g = spec.guideway
     n_c = len(g.rail_y) * len(g.carriage_x)
+    moved = [name for name, v in (("carriage_spacing", g.carriage_spacing),
+                                  ("rail_spacing", g.rail_spacing), ("nut_x", spec.screw.nut_x),
+                                  ("nut_y", spec.screw.nut_y)) if v is not None]
+    if moved:
+        raise ValueError(f"{moved[0]}: a table condensed elsewhere has its interfaces where its "
+                         "FE model put them; a traced layout needs the plate model "
+                         "(build_machine)")
     m = np.shape(table.K)[0]
     if m != 6 * (n_c + 1):
         raise ValueError(f"the table has {m} interface DOF; this machine's {n_c} carriages and "

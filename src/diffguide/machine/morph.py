@@ -7,18 +7,11 @@ A traced layout variable keeps the mesh topology of the specification and moves 
 moves the patches linearly, ``Δx_p = a_p Δv``, ``Δy_p = b_p Δv`` (``Δv`` the value minus its
 nominal in the specification):
 
-=====================  ===========================================  =========================
-variable (m)           nominal                                       moves
-=====================  ===========================================  =========================
-``carriage_spacing``   ``carriage_x[1] − carriage_x[0]``             each rail's carriages in X
-                                                                     about their centre
-                                                                     (``a = ±½``)
-``rail_spacing``       ``rail_y[1] − rail_y[0]``                     the two rails' carriages in
-                                                                     Y about the rails' centre
-                                                                     (``b = ±½``)
-``nut_x``, ``nut_y``   ``screw.nut_xy``                              the nut patch (``a`` or
-                                                                     ``b = 1``)
-=====================  ===========================================  =========================
+- ``carriage_spacing`` (nominal ``carriage_x[1] − carriage_x[0]``): each rail's carriages in X
+  about their centre, ``a = ±½``;
+- ``rail_spacing`` (nominal ``rail_y[1] − rail_y[0]``): the two rails' carriages in Y about the
+  rails' centre, ``b = ±½``;
+- ``nut_x``, ``nut_y`` (nominal ``screw.nut_xy``): the nut patch, ``a = 1`` or ``b = 1``.
 
 As long as no moving line reaches another grid line, the morphed mesh is the mesh a rebuild with
 the new positions gives, so derivatives w.r.t. the variables are those of rebuilt machines.
