@@ -20,7 +20,7 @@ from diffguide.guideway.rails import SplineRail
 from diffguide.machine.build import build_machine, with_overrides
 from diffguide.machine.equilibrium import equilibrium
 from diffguide.machine.kinematics import joint_errors
-from diffguide.machine.morph import GeometryRangeError
+from diffguide.machine.morph import GeometryRangeError, apply_layout
 from diffguide.machine.paper import majda2012_spec
 
 MESH = {"nx": 8, "ny": 4}
@@ -93,6 +93,17 @@ def test_moved_layout_is_the_rebuilt_mesh(k, delta):
 _gradient = eqx.filter_jit(jax.jacfwd(lambda p, rails: _objective(_traced(p), rails)))
 
 
+def test_apply_layout_writes_the_overrides_into_the_positions():
+    moved = with_overrides(_spec(), rail_spacing=0.33, nut_x=0.02, nut_y=0.005,
+                           carriage_spacing=0.33)
+    plain = apply_layout(moved)
+    assert plain.guideway.rail_y == pytest.approx((-0.165, 0.165), abs=1e-15)
+    assert plain.guideway.carriage_x == pytest.approx((-0.165, 0.165), abs=1e-15)
+    assert plain.screw.nut_xy == (0.02, 0.005)
+    assert plain.guideway.rail_spacing is None and plain.screw.nut_x is None
+    _assert_same_machine(build_machine(moved), build_machine(plain))
+
+
 def _gradient_against_rebuilt(p0, rails, steps):
     """jacfwd of the objective w.r.t. all five variables and central differences of rebuilt
     machines, each step ``steps[i]`` (m); and the objective's value."""
@@ -135,9 +146,15 @@ def test_out_of_range_layout_is_refused_naming_the_range():
         build_machine(_spec(), rail_spacing=0.46)
     with pytest.raises(ValueError, match="nut_x"):
         build_machine(_spec(), nut_x=-0.02)  # its edge at x = -0.013 would cross x = 0
-    traced = jax.jit(lambda s: build_machine(_spec(), rail_spacing=s).table.K)
-    with pytest.raises(RuntimeError, match="rail_spacing"):
-        traced(jnp.asarray(0.46)).block_until_ready()
+
+
+def test_traced_layout_at_its_nominal_is_the_plain_build_and_refused_out_of_range():
+    traced = jax.jit(lambda s: _table_arrays(build_machine(_spec(), rail_spacing=s)))
+    plain = _table_arrays(build_machine(_spec()))
+    for x, y in zip(traced(jnp.asarray(0.34)), plain):
+        np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(y))))
+    with pytest.raises(RuntimeError, match=r"rail_spacing.*within \(0\.298, 0\.352\) m"):
+        jax.block_until_ready(traced(jnp.asarray(0.46)))
 
 
 def test_rib_sizes_need_ribs_and_a_plausible_size():

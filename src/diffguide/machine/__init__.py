@@ -26,6 +26,7 @@ from .majda2012 import majda2012_table as majda2012_table
 from .majda2012 import paper_variant as paper_variant
 from .morph import LAYOUT_VARIABLES as LAYOUT_VARIABLES
 from .morph import GeometryRangeError as GeometryRangeError
+from .morph import apply_layout as apply_layout
 from .spec import GuidewaySpec as GuidewaySpec
 from .spec import MachineSpec as MachineSpec
 from .spec import ScrewSpec as ScrewSpec

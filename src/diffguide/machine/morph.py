@@ -169,3 +169,31 @@ def morph_layout(model, variables: list[LayoutVariable]):
     ref_xy = ref0 + jnp.stack([rx @ dv, ry @ dv], axis=1)
     return nodes, ref_xy, ref_xy[:-1, 0]
 
+
+
+def apply_layout(spec):
+    """``spec`` with its layout overrides (``carriage_spacing``, ``rail_spacing``, ``nut_x``,
+    ``nut_y``; concrete values) written into the positions a rebuild uses (``carriage_x``,
+    ``rail_y``, ``nut_xy``, m) and cleared: e.g. an optimised layout as a plain specification
+    (a machine file with :func:`diffguide.io.config_spec.config_from_spec`). ``TypeError`` for a
+    traced value."""
+    g, s = spec.guideway, spec.screw
+    values = {"carriage_spacing": g.carriage_spacing, "rail_spacing": g.rail_spacing,
+              "nut_x": s.nut_x, "nut_y": s.nut_y}
+    for name, v in values.items():
+        if v is not None and not concrete(v):
+            raise TypeError(f"apply_layout: {name} is traced; call it on concrete values")
+
+    def spread(pair, value):
+        if value is None:
+            return pair
+        a, b = pair
+        centre, half = 0.5 * (a + b), 0.5 * float(value)
+        return (centre - half, centre + half)
+
+    guideway = dataclasses.replace(
+        g, carriage_x=spread(g.carriage_x, g.carriage_spacing),
+        rail_y=spread(g.rail_y, g.rail_spacing), carriage_spacing=None, rail_spacing=None)
+    nut = tuple(float(v) if v is not None else v0 for v, v0 in zip((s.nut_x, s.nut_y), s.nut_xy))
+    screw = dataclasses.replace(s, nut_xy=nut, nut_x=None, nut_y=None)
+    return dataclasses.replace(spec, guideway=guideway, screw=screw)
