@@ -1,4 +1,5 @@
-"""Geometry you can differentiate: rail spacing, nut position and rib sizes as traced overrides.
+"""Geometry you can differentiate: rail spacing, nut position and rib sizes as traced overrides
+(with the carriage spacing, the layout variable that was traceable before).
 
 References: machines REBUILT from specifications with the perturbed positions/sizes (their own
 mesh lines, their own condensation, no tracing), compared value by value (a morphed mesh equals
@@ -28,16 +29,19 @@ POSITIONS = jnp.linspace(-0.3, 0.3, 4)
 NUT = (0.012, 0.013)  # off the centre lines (x = 0, y = 0: a uniform line and P5's)
 RIBS = (Rib("x", 0.0, 0.02, 0.06), Rib("y", 0.25, 0.03, 0.05))
 #: the traced variables, in the order of the parameter vector, and their nominal values (m)
-NAMES = ("rail_spacing", "nut_x", "nut_y", "rib_width", "rib_depth")
-NOMINAL = np.array([0.34, NUT[0], NUT[1], 0.025, 0.055])
+NAMES = ("rail_spacing", "nut_x", "nut_y", "rib_width", "rib_depth", "carriage_spacing")
+NOMINAL = np.array([0.34, NUT[0], NUT[1], 0.025, 0.055, 0.32])
 N = 15  # spline coefficients per rail and plane
 
 
-def _spec(rail_spacing=0.34, nut=NUT, rib_width=(0.02, 0.03), rib_depth=(0.06, 0.05)):
+def _spec(rail_spacing=0.34, nut=NUT, rib_width=(0.02, 0.03), rib_depth=(0.06, 0.05),
+          carriage_spacing=0.32):
     """The coarse ``majda2012`` machine with its nut at ``nut`` and two ribs, built plainly
-    (no override): the rails at ±rail_spacing/2, the ribs with the given sizes (m)."""
+    (no override): the rails at ±rail_spacing/2, the carriages at ±carriage_spacing/2, the ribs
+    with the given sizes (m)."""
     spec = majda2012_spec()
-    guideway = dataclasses.replace(spec.guideway, rail_y=(-rail_spacing / 2, rail_spacing / 2))
+    guideway = dataclasses.replace(spec.guideway, rail_y=(-rail_spacing / 2, rail_spacing / 2),
+                                   carriage_x=(-carriage_spacing / 2, carriage_spacing / 2))
     screw = dataclasses.replace(spec.screw, nut_xy=nut)
     ribs = tuple(dataclasses.replace(r, width=w, depth=d)
                  for r, w, d in zip(RIBS, rib_width, rib_depth))
@@ -47,8 +51,8 @@ def _spec(rail_spacing=0.34, nut=NUT, rib_width=(0.02, 0.03), rib_depth=(0.06, 0
 
 def _rebuilt(p):
     """The machine rebuilt at parameters ``p`` (:data:`NAMES`, m): rib sizes alike on both."""
-    s, nx, ny, w, d = (float(v) for v in p)
-    return build_machine(_spec(s, (nx, ny), (w, w), (d, d)))
+    s, nx, ny, w, d, c = (float(v) for v in p)
+    return build_machine(_spec(s, (nx, ny), (w, w), (d, d), c))
 
 
 def _traced(p):
@@ -82,14 +86,14 @@ def test_overrides_at_their_nominal_give_the_plain_build():
     _assert_same_machine(_traced(jnp.asarray(NOMINAL)), _rebuilt(NOMINAL))
 
 
-@pytest.mark.parametrize("k, delta", [(0, 0.01), (0, -0.04), (1, -0.01), (2, 0.01)])
+@pytest.mark.parametrize("k, delta", [(0, 0.01), (0, -0.04), (1, -0.01), (2, 0.01), (5, 0.1)])
 def test_moved_layout_is_the_rebuilt_mesh(k, delta):
     p = NOMINAL.copy()
     p[k] += delta
     _assert_same_machine(_traced(jnp.asarray(p)), _rebuilt(p))
 
 
-#: the objective's gradient w.r.t. all five variables, one traced program (rails an argument)
+#: the objective's gradient w.r.t. all six variables, one traced program (rails an argument)
 _gradient = eqx.filter_jit(jax.jacfwd(lambda p, rails: _objective(_traced(p), rails)))
 
 
@@ -105,7 +109,7 @@ def test_apply_layout_writes_the_overrides_into_the_positions():
 
 
 def _gradient_against_rebuilt(p0, rails, steps):
-    """jacfwd of the objective w.r.t. all five variables and central differences of rebuilt
+    """jacfwd of the objective w.r.t. all six variables and central differences of rebuilt
     machines, each step ``steps[i]`` (m); and the objective's value."""
     grad = np.asarray(_gradient(jnp.asarray(p0), rails))
     fd = []
@@ -120,7 +124,7 @@ def _gradient_against_rebuilt(p0, rails, steps):
 
 def test_gradient_is_the_derivative_of_rebuilt_machines():
     rails = _rails(1.0)
-    grad, fd, value = _gradient_against_rebuilt(NOMINAL, rails, [1e-5] * 5)
+    grad, fd, value = _gradient_against_rebuilt(NOMINAL, rails, [1e-5] * 6)
     assert np.all(np.abs(fd) > 1e-4 * value)  # every variable matters (per m of it)
     np.testing.assert_allclose(grad, fd, rtol=1e-4)
 
@@ -128,13 +132,14 @@ def test_gradient_is_the_derivative_of_rebuilt_machines():
 def test_gradient_through_lift_off_near_the_bounds():
     # rails 8x rougher: rows unload; the rails 1 mm inside their upper bound (rail 2's
     # footprint edge at y = 0.194 + Δs/2 meets P1's line y = 0.2 at 0.352 m), the nut 1 mm from
-    # the centre lines it may not cross
+    # the centre lines it may not cross, the carriages' inner edges (x = ±0.13 m at 0.32 m)
+    # 0.5 mm from the uniform lines x = ±0.125 m
     rails = _rails(8.0)
-    p0 = np.array([0.351, 0.001, 0.001, 0.004, 0.2])
+    p0 = np.array([0.351, 0.001, 0.001, 0.004, 0.2, 0.311])
     forces = np.asarray(equilibrium(_rebuilt(p0), rails, POSITIONS).forces)
     median = np.median(forces)
     assert np.mean(forces < 0.05 * median) > 0.1  # >10 % of the elements nearly unloaded
-    grad, fd, _ = _gradient_against_rebuilt(p0, rails, [1e-5, 1e-6, 1e-6, 1e-6, 1e-5])
+    grad, fd, _ = _gradient_against_rebuilt(p0, rails, [1e-5, 1e-6, 1e-6, 1e-6, 1e-5, 1e-6])
     assert np.all(np.isfinite(grad))
     np.testing.assert_allclose(grad, fd, rtol=1e-4)
 
