@@ -138,8 +138,10 @@ def test_gradient_through_lift_off_near_the_bounds():
     p0 = np.array([0.351, 0.001, 0.001, 0.004, 0.2, 0.311])
     forces = np.asarray(equilibrium(_rebuilt(p0), rails, POSITIONS).forces)
     median = np.median(forces)
-    assert np.mean(forces < 0.05 * median) > 0.1  # >10 % of the elements nearly unloaded
-    grad, fd, _ = _gradient_against_rebuilt(p0, rails, [1e-5, 1e-6, 1e-6, 1e-6, 1e-5, 1e-6])
+    assert np.mean(forces < 0.05 * median) > 0.25  # measured: 34 % of the elements nearly unloaded
+    # steps (m) where the differences' truncation and noise (the solves' tolerance) both stay
+    # below ~1e-5 of the derivative (measured over 1e-5 .. 3e-7 m)
+    grad, fd, _ = _gradient_against_rebuilt(p0, rails, [3e-6, 1e-5, 1e-5, 1e-6, 1e-5, 1e-6])
     assert np.all(np.isfinite(grad))
     np.testing.assert_allclose(grad, fd, rtol=1e-4)
 
