@@ -93,8 +93,9 @@ def test_moved_layout_is_the_rebuilt_mesh(k, delta):
     _assert_same_machine(_traced(jnp.asarray(p)), _rebuilt(p))
 
 
-#: the objective's gradient w.r.t. all six variables, one traced program (rails an argument)
-_gradient = eqx.filter_jit(jax.jacfwd(lambda p, rails: _objective(_traced(p), rails)))
+#: the objective's gradient w.r.t. all six variables (reverse mode, as a design loop takes it),
+#: one traced program (the rails an argument)
+_gradient = eqx.filter_jit(jax.grad(lambda p, rails: _objective(_traced(p), rails)))
 
 
 def test_apply_layout_writes_the_overrides_into_the_positions():
@@ -109,7 +110,7 @@ def test_apply_layout_writes_the_overrides_into_the_positions():
 
 
 def _gradient_against_rebuilt(p0, rails, steps):
-    """jacfwd of the objective w.r.t. all six variables and central differences of rebuilt
+    """jax.grad of the objective w.r.t. all six variables and central differences of rebuilt
     machines, each step ``steps[i]`` (m); and the objective's value."""
     grad = np.asarray(_gradient(jnp.asarray(p0), rails))
     fd = []
