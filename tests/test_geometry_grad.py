@@ -18,7 +18,7 @@ import pytest
 
 from diffguide.fe.mesh import Rib
 from diffguide.guideway.rails import SplineRail
-from diffguide.machine.build import build_machine, with_overrides
+from diffguide.machine.build import build_machine, layout_ranges, with_overrides
 from diffguide.machine.equilibrium import equilibrium
 from diffguide.machine.kinematics import joint_errors
 from diffguide.machine.morph import GeometryRangeError, apply_layout
@@ -163,6 +163,25 @@ def test_traced_layout_at_its_nominal_is_the_plain_build_and_refused_out_of_rang
         np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(y))))
     with pytest.raises(RuntimeError, match=r"rail_spacing.*within \(0\.298, 0\.352\) m"):
         jax.block_until_ready(traced(jnp.asarray(0.46)))
+
+
+def test_layout_ranges_are_the_gaps_to_the_next_grid_lines():
+    # nx = 8, ny = 4: uniform lines every 125 mm; P1..P4 put lines at x = ±0.45, y = ±0.2 m;
+    # carriage edges at x = ±0.13, ±0.19 m, rail footprint edges at y = ±0.146, ±0.194 m, the
+    # nut's at x = -0.013, 0.037 m (centre 0.012), y = -0.012, 0.038 m (centre 0.013)
+    ranges = layout_ranges(_spec())
+    expected = {
+        "carriage_spacing": (2 * (0.125 + 0.03), 2 * (0.25 - 0.03)),  # inner edge to ±0.125
+        "rail_spacing": (2 * (0.125 + 0.024), 2 * (0.2 - 0.024)),  # to y = ±0.125, P1's 0.2
+        "nut_x": (0.0, 0.025),  # its centre line to x = 0 (P5), its lower edge to x = 0
+        "nut_y": (0.0, 0.025),
+    }
+    assert ranges.keys() == expected.keys()
+    for name, (lo, hi) in expected.items():
+        assert ranges[name] == pytest.approx((lo, hi), abs=1e-12), name
+    spec = _spec()
+    edge = dataclasses.replace(spec, screw=dataclasses.replace(spec.screw, nut_xy=(0.475, 0.0)))
+    assert layout_ranges(edge)["nut_x"] is None  # the nut flange on the table's end
 
 
 def test_rib_sizes_need_ribs_and_a_plausible_size():

@@ -3,6 +3,7 @@ every table position; joint kinematic errors at points on the table; the ``majda
 
 from .._core.result import RESULTS as RESULTS
 from .build import build_machine as build_machine
+from .build import layout_ranges as layout_ranges
 from .build import machine_from_table as machine_from_table
 from .build import table_from_spec as table_from_spec
 from .build import with_overrides as with_overrides

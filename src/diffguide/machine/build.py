@@ -32,6 +32,7 @@ from ..fe.condense import CondensedTable
 from ..fe.table import TableModel, table_model
 from ..guideway.carriage import carriage_from_spec
 from .equilibrium import Machine
+from .morph import layout_ranges as _layout_ranges
 from .morph import layout_variables, morph_layout
 from .paper import majda2012_spec
 from .spec import MachineSpec
@@ -210,6 +211,17 @@ def _assemble(spec, table, carriage_x, carriage_rail, point_names, points) -> Ma
         screw_length_ref=s.free_length_at_ref,
         stroke=None if spec.stroke is None else float(spec.stroke),
     )
+
+
+def layout_ranges(spec: MachineSpec) -> dict[str, tuple[float, float] | None]:
+    """The open range (m) of each traced layout variable of :func:`build_machine`
+    (``carriage_spacing``, ``rail_spacing``, ``nut_x``, ``nut_y``) on ``spec``'s mesh, each with
+    the others at the specification's positions: within it no moved footprint line reaches
+    another grid line (:mod:`~diffguide.machine.morph`); a value outside is refused. ``None``
+    for a variable that cannot be traced on this layout (its footprint on the table edge).
+    E.g. the bounds of a design variable (keep a margin: an element next to a bound is thin).
+    """
+    return _layout_ranges(table_from_spec(spec), spec)
 
 
 def machine_from_table(spec: MachineSpec, table: CondensedTable) -> Machine:

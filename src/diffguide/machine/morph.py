@@ -61,9 +61,10 @@ class LayoutVariable:
     rate_y: np.ndarray
 
 
-def layout_variables(spec, patches) -> list[LayoutVariable]:
-    """The layout variables ``spec`` sets (not ``None``), for the table's ``patches``
-    (carriages ``C{rail}{carriage}``, then the nut)."""
+def layout_variables(spec, patches, every: bool = False) -> list[LayoutVariable]:
+    """The layout variables ``spec`` sets (not ``None``; with ``every``, all four, those not set
+    at their nominal), for the table's ``patches`` (carriages ``C{rail}{carriage}``, then the
+    nut)."""
     g, s = spec.guideway, spec.screw
     n = len(patches)
     carriages = patches[:-1]
@@ -77,18 +78,19 @@ def layout_variables(spec, patches) -> list[LayoutVariable]:
         rate[: len(idx)] = (values[idx] - values.mean()) / s0
         return s0, rate
 
-    if g.carriage_spacing is not None:
-        s0, rate = along(cx, [p.x for p in carriages])
-        out.append(LayoutVariable("carriage_spacing", g.carriage_spacing, s0, rate, np.zeros(n)))
-    if g.rail_spacing is not None:
-        s0, rate = along(ry, [p.y for p in carriages])
-        out.append(LayoutVariable("rail_spacing", g.rail_spacing, s0, np.zeros(n), rate))
     nut = np.zeros(n)
     nut[-1] = 1.0
-    if s.nut_x is not None:
-        out.append(LayoutVariable("nut_x", s.nut_x, float(s.nut_xy[0]), nut, np.zeros(n)))
-    if s.nut_y is not None:
-        out.append(LayoutVariable("nut_y", s.nut_y, float(s.nut_xy[1]), np.zeros(n), nut))
+    s0x, rate_x = along(cx, [p.x for p in carriages])
+    s0y, rate_y = along(ry, [p.y for p in carriages])
+    table = (
+        ("carriage_spacing", g.carriage_spacing, s0x, rate_x, np.zeros(n)),
+        ("rail_spacing", g.rail_spacing, s0y, np.zeros(n), rate_y),
+        ("nut_x", s.nut_x, float(s.nut_xy[0]), nut, np.zeros(n)),
+        ("nut_y", s.nut_y, float(s.nut_xy[1]), np.zeros(n), nut),
+    )
+    for name, value, nominal, ax, by in table:
+        if value is not None or every:
+            out.append(LayoutVariable(name, nominal if value is None else value, nominal, ax, by))
     return out
 
 
@@ -131,23 +133,46 @@ def allowed_ranges(lines, line_rates, nominals) -> list[tuple[float, float]]:
     return out
 
 
+def _rates_and_ranges(model, variables):
+    """The grid lines' rates ``∂x_i/∂v``, ``∂y_j/∂v`` and each variable's allowed range (m)."""
+    xs, ys = np.asarray(model.mesh.xs, float), np.asarray(model.mesh.ys, float)
+    nominals = [v.nominal for v in variables]
+    rx = np.stack([v.rate_x for v in variables], axis=1)  # (n_patches, n_vars)
+    ry = np.stack([v.rate_y for v in variables], axis=1)
+    lrx, lry = _line_rates(xs, model.patches, rx, "x"), _line_rates(ys, model.patches, ry, "y")
+    ranges = [
+        (max(a[0], b[0]), min(a[1], b[1]))
+        for a, b in zip(allowed_ranges(xs, lrx, nominals), allowed_ranges(ys, lry, nominals))
+    ]
+    return lrx, lry, ranges
+
+
+def layout_ranges(model, spec) -> dict[str, tuple[float, float] | None]:
+    """``{name: (lo, hi)}``: the open range (m) of each layout variable on ``model``'s mesh
+    (:func:`~diffguide.machine.build.table_from_spec` of ``spec``), each with the others at
+    their nominal (the specification's positions); ``None`` for one that cannot be traced there
+    (its footprint on the table edge, or sharing a grid line with a footprint it does not
+    move)."""
+    out = {}
+    for v in layout_variables(spec, model.patches, every=True):
+        try:
+            out[v.name] = _rates_and_ranges(model, [v])[2][0]
+        except ValueError:
+            out[v.name] = None
+    return out
+
+
 def morph_layout(model, variables: list[LayoutVariable]):
     """Node coordinates (n_nodes, 3), patch reference points (n_patches, 2) and carriage X
     (n_carriages,) (m) of ``model`` (:class:`~diffguide.fe.table.TableModel`) with the layout
     ``variables`` applied (module docstring); values outside their range are refused
     (:class:`GeometryRangeError`)."""
-    patches = model.patches
-    mesh = model.mesh
+    patches, mesh = model.patches, model.mesh
     xs, ys = np.asarray(mesh.xs, float), np.asarray(mesh.ys, float)
     names = [v.name for v in variables]
-    nominals = [v.nominal for v in variables]
+    lrx, lry, ranges = _rates_and_ranges(model, variables)
     rx = np.stack([v.rate_x for v in variables], axis=1)  # (n_patches, n_vars)
     ry = np.stack([v.rate_y for v in variables], axis=1)
-    lrx, lry = _line_rates(xs, patches, rx, "x"), _line_rates(ys, patches, ry, "y")
-    ranges = [
-        (max(a[0], b[0]), min(a[1], b[1]))
-        for a, b in zip(allowed_ranges(xs, lrx, nominals), allowed_ranges(ys, lry, nominals))
-    ]
     stated = "; ".join(f"{n} within ({lo:.6g}, {hi:.6g}) m" for n, (lo, hi) in zip(names, ranges))
     why = ("moves a footprint's grid line across another grid line of the mesh (the topology is "
            f"fixed): allowed, each with the others at their nominal, {stated}; change the "
@@ -168,7 +193,6 @@ def morph_layout(model, variables: list[LayoutVariable]):
     ref0 = np.array([[p.x, p.y] for p in patches])
     ref_xy = ref0 + jnp.stack([rx @ dv, ry @ dv], axis=1)
     return nodes, ref_xy, ref_xy[:-1, 0]
-
 
 
 def apply_layout(spec):
