@@ -189,3 +189,19 @@ def test_rib_sizes_need_ribs_and_a_plausible_size():
         with_overrides(majda2012_spec(), rib_depth=0.05)
     with pytest.raises(ValueError, match=r"rib_width\[1\].*\[0\.001, 1\] m"):
         with_overrides(_spec(), rib_width=(0.02, 3.0))
+
+
+@pytest.mark.slow  # a second-order program: ~2-3 min to compile on two cores
+def test_hessian_vector_product_is_the_derivative_of_the_gradient():
+    # Newton or trust-region design steps take curvature: the forward derivative of the
+    # (reverse-mode) gradient along a layout direction against central differences of that
+    # gradient, itself checked against rebuilt machines above
+    rails = _rails(1.0)
+    p0 = jnp.asarray(NOMINAL)
+    v = jnp.zeros(6).at[0].set(1.0)  # rail spacing
+    hv = np.asarray(eqx.filter_jit(lambda p: jax.jvp(lambda q: _gradient(q, rails), (p,),
+                                                     (v,))[1])(p0))
+    h = 1e-5
+    fd = (np.asarray(_gradient(p0 + h * v, rails)) - np.asarray(_gradient(p0 - h * v, rails)))
+    fd /= 2 * h
+    np.testing.assert_allclose(hv, fd, rtol=1e-4, atol=1e-5 * np.max(np.abs(fd)))
