@@ -18,7 +18,12 @@ import pytest
 
 from diffguide.fe.mesh import Rib
 from diffguide.guideway.rails import SplineRail
-from diffguide.machine.build import build_machine, layout_ranges, with_overrides
+from diffguide.machine.build import (
+    build_machine,
+    layout_ranges,
+    machine_from_table,
+    with_overrides,
+)
 from diffguide.machine.equilibrium import equilibrium
 from diffguide.machine.kinematics import joint_errors
 from diffguide.machine.morph import GeometryRangeError, apply_layout
@@ -182,6 +187,13 @@ def test_layout_ranges_are_the_gaps_to_the_next_grid_lines():
     spec = _spec()
     edge = dataclasses.replace(spec, screw=dataclasses.replace(spec.screw, nut_xy=(0.475, 0.0)))
     assert layout_ranges(edge)["nut_x"] is None  # the nut flange on the table's end
+
+
+def test_a_table_condensed_elsewhere_refuses_a_traced_layout():
+    table = build_machine(_spec()).table  # its interfaces where the plain layout puts them
+    machine_from_table(_spec(), table)
+    with pytest.raises(ValueError, match="nut_y: a table condensed elsewhere"):
+        machine_from_table(with_overrides(_spec(), nut_y=0.014), table)
 
 
 def test_rib_sizes_need_ribs_and_a_plausible_size():
