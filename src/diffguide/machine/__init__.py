@@ -3,6 +3,7 @@ every table position; joint kinematic errors at points on the table; the ``majda
 
 from .._core.result import RESULTS as RESULTS
 from .build import build_machine as build_machine
+from .build import layout_ranges as layout_ranges
 from .build import machine_from_table as machine_from_table
 from .build import table_from_spec as table_from_spec
 from .build import with_overrides as with_overrides
@@ -24,6 +25,9 @@ from .majda2012 import majda2012_machine as majda2012_machine
 from .majda2012 import majda2012_spec as majda2012_spec
 from .majda2012 import majda2012_table as majda2012_table
 from .majda2012 import paper_variant as paper_variant
+from .morph import LAYOUT_VARIABLES as LAYOUT_VARIABLES
+from .morph import GeometryRangeError as GeometryRangeError
+from .morph import apply_layout as apply_layout
 from .spec import GuidewaySpec as GuidewaySpec
 from .spec import MachineSpec as MachineSpec
 from .spec import ScrewSpec as ScrewSpec

@@ -10,7 +10,9 @@ replace them with ``eqx.tree_at``::
     machine = build_machine(spec)
 
 Differentiable: ``table.thickness``, ``table.material.E``, ``carriage.preload_fraction``,
-``carriage.capacity``, ``guideway.carriage_spacing`` and the screw's stiffness parameters.
+``carriage.capacity``, ``guideway.carriage_spacing``, ``guideway.rail_spacing``,
+``screw.nut_x``, ``screw.nut_y``, the ribs' ``width`` and ``depth`` and the screw's stiffness
+parameters.
 Everything that fixes the mesh topology (sizes, positions, point names, mesh divisions) is static
 (change it with ``dataclasses.replace``).
 """
@@ -56,12 +58,16 @@ class GuidewaySpec(eqx.Module):
         carriage_spacing: ``None``, or the distance between the two carriages on each rail (m;
             may be traced): moves the carriages about the centre of ``carriage_x`` keeping the
             mesh topology (:func:`~diffguide.machine.build.build_machine`).
+        rail_spacing: ``None``, or the distance between the two rails (m; may be traced): moves
+            the rails (and their carriages) about the centre of ``rail_y`` keeping the mesh
+            topology (:mod:`~diffguide.machine.morph`).
     """
 
     rail_y: Pair = eqx.field(static=True, converter=_pair)
     carriage_x: Pair = eqx.field(static=True, converter=_pair)
     footprint: Pair = eqx.field(static=True, converter=_pair)
     carriage_spacing: float | Float[Array, ""] | None = None
+    rail_spacing: float | Float[Array, ""] | None = None
 
     def __check_init__(self):
         for k, side in enumerate(self.footprint):
@@ -82,6 +88,8 @@ class ScrewSpec(eqx.Module):
         core_diameter: screw core diameter (m). E: its Young's modulus (Pa).
         free_length_at_ref: fixed bearing to nut at x = 0 (m); the free length is this + x.
         nut_xy: the nut's position under the table (m). nut_footprint: its flange, (X, Y) (m).
+        nut_x, nut_y: ``None``, or the nut's X or Y (m; may be traced) in place of ``nut_xy``'s,
+            keeping the mesh topology (:mod:`~diffguide.machine.morph`).
     """
 
     core_diameter: float | Float[Array, ""]
@@ -89,6 +97,8 @@ class ScrewSpec(eqx.Module):
     free_length_at_ref: float | Float[Array, ""]
     nut_xy: Pair = eqx.field(static=True, converter=_pair)
     nut_footprint: Pair = eqx.field(static=True, converter=_pair)
+    nut_x: float | Float[Array, ""] | None = None
+    nut_y: float | Float[Array, ""] | None = None
 
 
 class MachineSpec(eqx.Module):
