@@ -255,7 +255,8 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
            planes: tuple[str, ...] = ("vertical", "horizontal"),
            mounting: MountingTolerance | str | None = None, n_samples: int = 64,
            check_samples: int = 64, seed: int = 0, x_ref: float = 0.0, knots=None,
-           chunk_size: int | None = None, max_iterations: int = 30, ftol: float = 1e-6,
+           chunk_size: int | None = None, devices=None, max_iterations: int = 30,
+           ftol: float = 1e-6,
            progress: Callable[[str], None] | None = None) -> DesignResult:
     """Minimise ``objective`` over the design ``variables`` of ``spec`` (module docstring).
 
@@ -271,7 +272,8 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
             2). n_samples: common random draws of the optimisation; check_samples: fresh draws
             (seed ``seed + 1``) re-evaluating the start and the optimum (0: none).
         x_ref: reference position (m). knots: the rails' ``(start, spacing, n)`` (default
-            :func:`design_knots`). chunk_size: samples per compiled call.
+            :func:`design_knots`). chunk_size: samples per compiled call. devices: JAX devices
+            to shard the samples over (default ``jax.devices()``).
         max_iterations, ftol: SLSQP's. progress: called with one line per evaluation.
     """
     from scipy.optimize import minimize
@@ -287,6 +289,13 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         raise ValueError(f"bounds: one (lo, hi) per variable ({len(names)}), got {len(bounds)}")
     if not (int(n_samples) == n_samples and n_samples >= 8):
         raise ValueError(f"n_samples must be an integer >= 8, got {n_samples!r}")
+    if obj.quantile is not None:  # enough samples for the percentile's interval (or an error)
+        for what, n in (("n_samples", n_samples), ("check_samples", check_samples)):
+            try:
+                if n:
+                    order_statistic_bounds(int(n), obj.quantile, CONFIDENCE)
+            except ValueError as exc:
+                raise ValueError(f"{what}: {exc}") from None
     for c in constraints:
         if not isinstance(c, Constraint):
             raise ValueError(f"constraints must be Constraint objects, got {c!r}")
@@ -298,7 +307,7 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
     rails = _rails(seed, int(n_samples), rail_rms, correlation_length, kernel, planes, mounting,
                    knots)
     sweep = DesignSweep(spec, names, rails, positions, obj.measure, x0=x0, x_ref=x_ref,
-                        chunk_size=chunk_size)
+                        chunk_size=chunk_size, devices=devices)
     say = progress or (lambda line: None)
     history: list[dict] = []
     cache: dict[bytes, tuple] = {}
@@ -350,7 +359,7 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         fresh = _rails(seed + 1, int(check_samples), rail_rms, correlation_length, kernel,
                        planes, mounting, knots)
         check = DesignSweep(spec, names, fresh, positions, obj.measure, x0=x0, x_ref=x_ref,
-                            chunk_size=sweep.chunk)  # the same compiled chunk
+                            chunk_size=sweep.chunk, devices=devices)  # the same compiled chunk
         mb, _, okb = check(x0)
         ma, _, oka = check(x_opt)
         fresh_before = statistic(obj, mb, None, okb)[0]

@@ -7,9 +7,12 @@ with its ``k`` tangents ``∂M/∂x_j`` (forward mode: :func:`jax.jvp` of
 derivative). Each rail sample ``i`` of the fixed batch then gives its measure ``m_i(M)`` (the
 same per-sample sweep as :func:`~diffguide.studies.montecarlo.batched_sweep`) and, by forward
 mode through the equilibrium's implicit tangent, ``dm_i/dx_j = ∂m_i/∂M · ∂M/∂x_j``; samples go
-in padded chunks of one compiled shape. Forward mode, not :func:`jax.grad`: a design has a few
-variables and reverse mode through the vmapped implicit solves stores every solve's tape
-(:mod:`~diffguide.studies.sensitivity`); the two give the same derivative.
+in padded chunks of one compiled shape, sharded over the JAX devices when there are several
+(``jax.shard_map`` over the samples, as :func:`~diffguide.studies.montecarlo.batched_sweep`).
+
+Forward mode, not :func:`jax.grad`: a design has a few variables and reverse mode through the
+vmapped implicit solves stores every solve's tape (:mod:`~diffguide.studies.sensitivity`); the
+two give the same derivative.
 
 The measures are those of :mod:`~diffguide.studies.tolerance`: ``"roll_difference"`` (the
 largest ``max_x |E_AX,i − E_AX,j|`` over corner pairs, rad) or ``"range:ERR:POINT"``. Both are
@@ -26,7 +29,7 @@ from ..machine.build import build_machine
 from ..machine.kinematics import ERROR_NAMES
 from ..machine.spec import MachineSpec
 from .design_space import apply_all
-from .montecarlo import _corner_pairs, _pad, _per_sample, default_chunk_size
+from .montecarlo import _corner_pairs, _pad, _per_sample, _placement, default_chunk_size
 from .random_rails import RailBatch
 from .tolerance import parse_range_measure
 
@@ -49,21 +52,30 @@ def _machine_and_tangents(spec, names, x):
 
 @eqx.filter_jit
 def _chunk(dyn, tangents, vertical, horizontal, positions, x_ref, *, static, start, spacing,
-           pair_idx, measure_index, grad):
-    def one(v, h):
-        def f(d):
-            out = _per_sample(eqx.combine(d, static), v, h, positions, x_ref, start, spacing,
-                              pair_idx, False)
-            return _pick(out, measure_index), out["converged"]
+           pair_idx, measure_index, grad, mesh):
+    def local(dyn, tangents, vertical, horizontal, positions, x_ref):
+        def one(v, h):
+            def f(d):
+                out = _per_sample(eqx.combine(d, static), v, h, positions, x_ref, start,
+                                  spacing, pair_idx, False)
+                return _pick(out, measure_index), out["converged"]
 
-        if not grad:
-            y, ok = f(dyn)
-            return y, jnp.zeros(0), ok
-        y, dy, ok = jax.vmap(lambda t: jax.jvp(f, (dyn,), (t,), has_aux=True),
-                             out_axes=(None, 0, None))(tangents)
-        return y, dy, ok
+            if not grad:
+                y, ok = f(dyn)
+                return y, jnp.zeros(0), ok
+            y, dy, ok = jax.vmap(lambda t: jax.jvp(f, (dyn,), (t,), has_aux=True),
+                                 out_axes=(None, 0, None))(tangents)
+            return y, dy, ok
 
-    return jax.vmap(one)(vertical, horizontal)
+        return jax.vmap(one)(vertical, horizontal)
+
+    if mesh is None:
+        return local(dyn, tangents, vertical, horizontal, positions, x_ref)
+    P = jax.sharding.PartitionSpec
+    spec = (P(), P(), P("samples"), P("samples"), P(), P())
+    return jax.shard_map(local, mesh=mesh, in_specs=spec, out_specs=P("samples"),
+                         check_vma=False)(
+        dyn, tangents, vertical, horizontal, positions, x_ref)
 
 
 class DesignSweep:
@@ -75,11 +87,14 @@ class DesignSweep:
             (:data:`~diffguide.studies.design_space.VARIABLES`). rails: the samples (common to
             every ``x``). positions: table positions (m). measure: ``"roll_difference"`` or
             ``"range:ERR:POINT"``. x_ref: reference position (m). chunk_size: samples per
-            compiled call (default :func:`~diffguide.studies.montecarlo.default_chunk_size`).
+            compiled call (default :func:`~diffguide.studies.montecarlo.default_chunk_size`;
+            rounded up to a multiple of the device count). devices: JAX devices to shard each
+            chunk's samples over (default ``jax.devices()``; the machine and its tangents are
+            replicated), as :func:`~diffguide.studies.montecarlo.batched_sweep`.
     """
 
     def __init__(self, spec: MachineSpec, names, rails: RailBatch, positions, measure: str, *,
-                 x0, x_ref: float = 0.0, chunk_size: int | None = None):
+                 x0, x_ref: float = 0.0, chunk_size: int | None = None, devices=None):
         self.spec, self.names = spec, tuple(names)
         self.rails = rails
         self.positions = jnp.asarray(np.atleast_1d(np.asarray(positions, dtype=float)))
@@ -99,10 +114,13 @@ class DesignSweep:
                 raise ValueError(f"measure {measure!r}: no control point {point!r}; the "
                                  f"machine's points: {', '.join(names_p)}")
             self.measure_index = (names_p.index(point), ERROR_NAMES.index(err))
-        n = len(rails)
-        self.chunk = int(min(chunk_size or default_chunk_size(), n))
-        if self.chunk < 1:
-            raise ValueError(f"chunk_size must be >= 1, got {chunk_size!r}")
+        devices = list(jax.devices() if devices is None else devices)
+        if chunk_size is not None and not (int(chunk_size) == chunk_size and chunk_size >= 1):
+            raise ValueError(f"chunk_size must be an integer >= 1, got {chunk_size!r}")
+        n_dev = len(devices)
+        c = min(int(chunk_size or default_chunk_size(devices)), len(rails))
+        self.chunk = -(-c // n_dev) * n_dev  # a multiple of the device count
+        self.mesh, self.put = _placement(devices)
         self.calls = 0
 
     def __call__(self, x, *, grad: bool = True):
@@ -115,11 +133,11 @@ class DesignSweep:
         ys, dys, oks = [], [], []
         for lo in range(0, n, c):
             hi = min(lo + c, n)
-            y, dy, ok = _chunk(dyn, tangents, jnp.asarray(_pad(v_all[lo:hi], c)),
-                               jnp.asarray(_pad(h_all[lo:hi], c)), self.positions, self.x_ref,
+            y, dy, ok = _chunk(dyn, tangents, self.put(_pad(v_all[lo:hi], c)),
+                               self.put(_pad(h_all[lo:hi], c)), self.positions, self.x_ref,
                                static=self.static, start=self.rails.start,
                                spacing=self.rails.spacing, pair_idx=self.pair_idx,
-                               measure_index=self.measure_index, grad=grad)
+                               measure_index=self.measure_index, grad=grad, mesh=self.mesh)
             ys.append(np.asarray(y)[: hi - lo])
             oks.append(np.asarray(ok)[: hi - lo])
             if grad:
