@@ -39,7 +39,7 @@ def add_parser(sub) -> None:
                    help="MEASURE:STATISTIC; MEASURE 'roll-difference' (µrad) or "
                    "'range:ERR:POINT' (e.g. range:EBX:P1); STATISTIC 'mean' or 'pNN' "
                    "(the NN %% quantile, Harrell-Davis)")
-    p.add_argument("--constraint", action="append", default=[], metavar="Q<=V",
+    p.add_argument("--constraint", action="append", default=None, metavar="Q<=V",
                    help="QUANTITY<=V, >=V or =V: mass (kg, the plate), preload (N, total), "
                    "spacing (mm: carriage spacing - (table length - carriage length)). Repeat")
     p.add_argument("--rail-rms-um", type=float, default=1.0,
@@ -196,7 +196,7 @@ def run(args) -> int:
     from .simulate import default_positions, parse_mesh, parse_positions
 
     objective = parse_objective(args.objective)  # malformed input fails before any solve
-    constraints = [parse_constraint(c) for c in args.constraint]
+    constraints = [parse_constraint(c) for c in args.constraint or ()]
     varied = [parse_vary(v) for v in args.vary]
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     cfg = machine_config(args)
