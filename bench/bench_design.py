@@ -12,8 +12,8 @@ carry the derivatives too), wall time and sample sweeps per second, and whether 
 lies within one grid spacing of the grid's. The compile time of each is measured separately
 (a first call) and not counted in the wall times. Run:
 
-    python bench/bench_design.py                          # 10x5 mesh, 32 samples, 9x9 grid
-    python bench/bench_design.py --samples 256 --grid 15  # larger
+    python bench/bench_design.py                          # 10x5 mesh, 32 samples, 15x15 grid
+    python bench/bench_design.py --samples 256 --grid 25  # larger
     python bench/bench_design.py --host-devices 2         # shard the samples over 2 CPU devices
 """
 
@@ -30,8 +30,8 @@ def main(argv=None) -> int:
     p.add_argument("--samples", type=int, default=32)
     p.add_argument("--positions", type=int, default=15)
     p.add_argument("--mesh", default="10x5")
-    p.add_argument("--grid", type=int, default=9)
-    p.add_argument("--mass-kg", type=float, default=160.0)
+    p.add_argument("--grid", type=int, default=15)
+    p.add_argument("--mass-kg", type=float, default=180.0)
     p.add_argument("--chunk", type=int, default=None)
     p.add_argument("--host-devices", type=int, default=1)
     p.add_argument("--json", default=None, help="also write the figures as JSON")
@@ -79,7 +79,7 @@ def main(argv=None) -> int:
                         "message": res.message}
 
     rails = sample_rails(0, args.samples, GaussianRailModel(1e-6, 0.2), knots=knots)
-    rho_lw = 7200.0 * spec.table.length * spec.table.width
+    rho_lw = float(spec.table.material.rho) * spec.table.length * spec.table.width
     ts = np.linspace(*bounds[0], args.grid)
     ss = np.linspace(*bounds[1], args.grid)
 
@@ -93,7 +93,8 @@ def main(argv=None) -> int:
     value(ts[0], ss[0])
     out["grid_compile_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    grid = [(value(t, s), t, s) for t in ts for s in ss if rho_lw * t <= args.mass_kg]
+    feasible = [(t, s) for t in ts for s in ss if rho_lw * t <= args.mass_kg * (1 + 1e-9)]
+    grid = [(value(t, s), t, s) for t, s in feasible]
     wall_g = time.perf_counter() - t0
     best = min(grid)
     out["grid"] = {"thickness_mm": best[1] * 1e3, "carriage_spacing_mm": best[2] * 1e3,

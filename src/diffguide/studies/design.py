@@ -248,6 +248,31 @@ def _rails(seed, n, rms, correlation_length, kernel, planes, mounting, knots):
                         knots=knots)
 
 
+def _checked(spec, names, bounds, obj, n_samples, check_samples, constraints):
+    """The bounds (SI) after checking :func:`design`'s arguments (``ValueError`` naming them)."""
+    if not names or len(set(names)) != len(names):
+        raise ValueError(f"variables must be distinct names from {', '.join(VARIABLES)}, got "
+                         f"{list(names)}")
+    if bounds is not None and len(bounds) != len(names):
+        raise ValueError(f"bounds: one (lo, hi) per variable ({len(names)}), got {len(bounds)}")
+    bounds = check_bounds(spec, names, [None] * len(names) if bounds is None else bounds)
+    if not (int(n_samples) == n_samples and n_samples >= 8):
+        raise ValueError(f"n_samples must be an integer >= 8, got {n_samples!r}")
+    if not (int(check_samples) == check_samples and check_samples >= 0):
+        raise ValueError(f"check_samples must be an integer >= 0, got {check_samples!r}")
+    if obj.quantile is not None:  # enough samples for the percentile's interval (or an error)
+        for what, n in (("n_samples", n_samples), ("check_samples", check_samples)):
+            try:
+                if n:
+                    order_statistic_bounds(int(n), obj.quantile, CONFIDENCE)
+            except ValueError as exc:
+                raise ValueError(f"{what}: {exc}") from None
+    for c in constraints:
+        if not isinstance(c, Constraint):
+            raise ValueError(f"constraints must be Constraint objects, got {c!r}")
+    return bounds
+
+
 def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=None,
            objective: Objective | str = "roll_difference:mean",
            constraints: Sequence[Constraint] = (), rail_rms: float = 1e-6,
@@ -264,7 +289,8 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         spec: the machine (:class:`~diffguide.machine.spec.MachineSpec`, SI; its mesh as
             given). positions: table positions (m). variables: names from
             :data:`~diffguide.studies.design_space.VARIABLES`. bounds: one ``(lo, hi)`` per
-            variable (SI), or None for its default; None: all defaults.
+            variable (SI), or None for its default; None: all defaults. The start is the
+            machine's own values, clipped into the bounds.
         objective: an :class:`Objective` or its text (:func:`parse_objective`).
         constraints: :class:`~diffguide.studies.design_space.Constraint` s (SI).
         rail_rms (m), correlation_length (m), kernel, planes, mounting: the random rails
@@ -281,24 +307,7 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
     t0 = time.perf_counter()
     obj = parse_objective(objective) if isinstance(objective, str) else objective
     names = tuple(variables)
-    if not names or len(set(names)) != len(names):
-        raise ValueError(f"variables must be distinct names from {', '.join(VARIABLES)}, got "
-                         f"{list(names)}")
-    bounds = check_bounds(spec, names, [None] * len(names) if bounds is None else bounds)
-    if len(bounds) != len(names):
-        raise ValueError(f"bounds: one (lo, hi) per variable ({len(names)}), got {len(bounds)}")
-    if not (int(n_samples) == n_samples and n_samples >= 8):
-        raise ValueError(f"n_samples must be an integer >= 8, got {n_samples!r}")
-    if obj.quantile is not None:  # enough samples for the percentile's interval (or an error)
-        for what, n in (("n_samples", n_samples), ("check_samples", check_samples)):
-            try:
-                if n:
-                    order_statistic_bounds(int(n), obj.quantile, CONFIDENCE)
-            except ValueError as exc:
-                raise ValueError(f"{what}: {exc}") from None
-    for c in constraints:
-        if not isinstance(c, Constraint):
-            raise ValueError(f"constraints must be Constraint objects, got {c!r}")
+    bounds = _checked(spec, names, bounds, obj, n_samples, check_samples, constraints)
     x0 = np.clip(spec_values(spec, names), [b[0] for b in bounds], [b[1] for b in bounds])
     lo, width = np.array([b[0] for b in bounds]), np.array([b[1] - b[0] for b in bounds])
     if knots is None:
