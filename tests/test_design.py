@@ -12,6 +12,10 @@ the traced build and sweep compile once for the module."""
 
 import dataclasses
 import json
+import os
+import subprocess
+import sys
+import textwrap
 
 import equinox as eqx
 import numpy as np
@@ -192,6 +196,45 @@ def test_bad_input():
     with pytest.raises(ValueError, match="--vary 'thickness=80:30'"):
         parse_vary("thickness=80:30")
     assert parse_vary("thickness=40:80") == ("thickness", pytest.approx((0.04, 0.08)))
+
+
+_SHARDED = textwrap.dedent(
+    """
+    import sys
+    import jax, numpy as np
+    jax.config.update("jax_enable_x64", True)
+    from diffguide.cli.montecarlo import split_cpu_into_devices
+    assert split_cpu_into_devices(2)  # before the first array
+    from diffguide.io.config import default_config, spec_from_config
+    from diffguide.machine.build import with_overrides
+    from diffguide.studies.design_sweep import DesignSweep
+    from diffguide.studies.random_rails import GaussianRailModel, sample_rails
+    assert len(jax.devices()) == 2, jax.devices()
+    spec = with_overrides(spec_from_config(default_config()), nx=10, ny=5)
+    rails = sample_rails(0, 8, GaussianRailModel(1e-6, 0.2))
+    x0 = np.array([0.05, 0.30])
+    sw = DesignSweep(spec, ("thickness", "carriage_spacing"), rails, np.linspace(-0.3, 0.3, 5),
+                     "roll_difference", x0=x0, chunk_size=3)  # rounded up to 4: 2 chunks
+    assert sw.chunk == 4 and sw.mesh is not None
+    m, dm, ok = sw(x0)
+    np.save(sys.argv[1], np.column_stack([m, dm, ok]))
+    """
+)
+
+
+def test_sharded_over_two_cpu_devices(tmp_path, sweep):
+    """The same measures and derivatives with the samples sharded over two CPU devices."""
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    script, out = tmp_path / "sharded.py", tmp_path / "sharded.npy"
+    script.write_text(_SHARDED)
+    run = subprocess.run([sys.executable, str(script), str(out)], env=env, capture_output=True,
+                         text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    two = np.load(out)
+    m, dm, ok = sweep(X0)
+    np.testing.assert_allclose(two[:, 0], m, rtol=1e-10)
+    np.testing.assert_allclose(two[:, 1:3], dm, rtol=1e-8, atol=1e-12)
+    assert two[:, 3].all()
 
 
 def test_cli_units_agree_with_the_tables():
