@@ -1,11 +1,13 @@
 """Design with gradients (:mod:`diffguide.studies.design`, ``diffguide design``).
 
 The per-sample derivatives w.r.t. thickness and carriage spacing against central differences
-of *rebuilt* machines (the spacing by a new ``carriage_x``, the mesh rebuilt around it); the
+of *rebuilt* machines (the spacing by a new ``carriage_x``, the mesh rebuilt around it), and
+w.r.t. preload and the table's modulus against machines built with the perturbed value; the
 objective's gradient (mean, Harrell–Davis percentile) against central differences of the same
 statistic; the Harrell–Davis weights against their closed form; the spacing range against
 rebuilt meshes; the optimum of two problems (one at an active mass constraint, one with an
-interior optimum) against brute-force grids over rebuilt machines; bad input; the command line.
+interior optimum) against brute-force grids over rebuilt machines; the sweep sharded over two
+devices; bad input; the command line.
 
 One mesh (10 × 5), five positions, eight samples and the same two variables throughout, so that
 the traced build and sweep compile once for the module."""
@@ -92,6 +94,25 @@ def test_derivatives_match_central_differences_of_rebuilt_machines(sweep, rails,
     np.testing.assert_allclose(m, measures(rails, X0), rtol=1e-9)
     for j, (plus, minus, h) in enumerate(differences):
         fd = (plus - minus) / (2 * h)
+        np.testing.assert_allclose(dm[:, j], fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
+
+
+def test_preload_and_modulus_derivatives_match_central_differences(rails):
+    """The other two variables: each rebuilt with the perturbed value (roll range at P1)."""
+    x0 = np.array([0.06, 110e9])
+    names = ("preload_fraction", "E")
+    sw = DesignSweep(SPEC, names, rails, X, "range:EAX:P1", x0=x0, chunk_size=N)
+    m, dm, ok = sw(x0)
+    assert ok.all()
+
+    def at(x):
+        machine = build_machine(SPEC, preload_fraction=x[0], E=x[1])
+        return measure_values(batched_sweep(machine, rails, X, chunk_size=N), "range:EAX:P1")
+
+    np.testing.assert_allclose(m, at(x0), rtol=1e-9)
+    for j in range(2):
+        e = np.eye(2)[j] * 1e-5 * x0[j]
+        fd = (at(x0 + e) - at(x0 - e)) / (2e-5 * x0[j])
         np.testing.assert_allclose(dm[:, j], fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
 
 
