@@ -34,8 +34,8 @@ the corners' roll least — and what rail grade does the re-designed machine the
 `diffguide.studies.design.design` draws the rails once and keeps them (common random numbers: the
 objective is then a smooth, deterministic function of the design), differentiates it exactly by
 forward-mode AD through the table's condensation and every equilibrium, and hands value and
-gradient to SciPy's SLSQP. A coarse 100 mm mesh (10 × 5) keeps the notebook quick and gives the
-carriage spacing a range of ±38 mm about the original 320 mm.
+gradient to SciPy's SLSQP. A coarse 100 mm mesh (10 × 5) keeps the notebook quick and lets the
+carriage spacing range over 262–338 mm (the original: 320 mm).
 """),
     code(r"""
 import jax
