@@ -83,6 +83,8 @@ _LAZY = {
     "MountingTolerance": ".studies",
     "RailBatch": ".studies",
     "ToleranceResult": ".studies",
+    "DesignResult": ".studies",
+    "design": ".studies",
     "allocate_grade": ".studies",
     "batched_sweep": ".studies",
     "compensation_table": ".studies",

@@ -36,6 +36,7 @@ _COMMANDS = {
     "fit": "fit",
     "montecarlo": "montecarlo",
     "tolerance": "tolerance",
+    "design": "design",
     "plan": "plan",
     "predict": "predict",
 }

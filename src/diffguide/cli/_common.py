@@ -35,7 +35,7 @@ exit status:
   130  interrupted (Ctrl-C): the outputs are the earlier ones or the complete new ones"""
 
 #: commands that build the table mesh, and so take ``--mesh``
-MESH_COMMANDS = ("table", "simulate", "fit", "montecarlo", "plan", "tolerance")
+MESH_COMMANDS = ("table", "simulate", "fit", "montecarlo", "plan", "tolerance", "design")
 
 DEFAULT_CACHE_DIR = Path("~/.cache/diffguide/jax")
 #: the cache folder's size limit (MB; ``$DIFFGUIDE_CACHE_MAX_MB`` overrides it): beyond it the

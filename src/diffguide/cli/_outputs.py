@@ -14,6 +14,7 @@ OUTPUT_FILES = {
     "montecarlo": ("out", "plot"),
     "fit": ("export_compensation",),
     "predict": ("out",),
+    "design": ("out", "json", "plot"),
 }
 #: command -> the destinations of its output folders (replaced whole)
 OUTPUT_DIRS = {"fit": ("out",), "plan": ("out",)}

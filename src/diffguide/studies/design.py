@@ -1,0 +1,410 @@
+r"""Design with gradients: the machine layout whose errors, over the Monte Carlo distribution of
+its rails, are smallest — within bounds and constraints.
+
+**The objective.** ``n`` random rail pairs (the rail model and mounting class of
+:func:`~diffguide.studies.montecarlo.batched_sweep`) are drawn once and kept: *common random
+numbers*, so that the objective is a deterministic, differentiable function of the design
+``x`` and two designs are compared on the same rails. Each sample gives its measure ``m_i(x)``
+(:mod:`~diffguide.studies.design_sweep`); the objective is a statistic of them:
+
+- ``mean``: :math:`\bar m = \frac1n\sum_i m_i`, its 95 % interval
+  :math:`\bar m \pm 1.96\,s/\sqrt n` (normal approximation of the mean);
+- ``pNN`` (e.g. ``p95``): the Harrell–Davis estimate of the ``NN`` % quantile,
+  :math:`\sum_k w_k m_{(k)}` with :math:`w_k = I_{k/n}(a, b) - I_{(k-1)/n}(a, b)`,
+  :math:`a = p(n+1)`, :math:`b = (1-p)(n+1)` (``I`` the regularised incomplete beta function;
+  Harrell & Davis, Biometrika 69 (1982) 635). Unlike one order statistic it weighs every
+  sample smoothly, so its gradient does not jump from sample to sample as the design moves;
+  its 95 % interval is the distribution-free order-statistic interval
+  (:func:`~diffguide.studies.tolerance.order_statistic_bounds`).
+
+Its gradient is :math:`\sum_i (\partial S/\partial m_i)\, \mathrm dm_i/\mathrm dx` with the
+per-sample derivatives by forward-mode AD through the build and the equilibrium. Samples whose
+equilibrium fails at an iterate are left out of that iterate's statistic and counted.
+
+**The optimiser**: SciPy's SLSQP (sequential least squares programming: bounds, equality and
+inequality constraints, our exact gradients) on the variables scaled to ``[0, 1]`` within their
+bounds, the objective scaled by its starting value.
+
+**The check.** The original and the optimum are re-evaluated on *fresh* rails (another seed),
+each with its interval, and their difference on those same rails with a paired interval
+(:func:`paired_improvement`): the improvement counts (:attr:`DesignResult.improved`) when its
+95 % interval lies above zero.
+"""
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..inverse.problem import visited_range
+from ..machine.build import build_machine
+from ..machine.spec import MachineSpec
+from .design_space import CONSTRAINTS, VARIABLES, Constraint, apply_all, check_bounds, spec_values
+from .design_sweep import DesignSweep
+from .random_rails import GaussianRailModel, MountingTolerance, default_knots, sample_rails
+from .tolerance import measure_unit, order_statistic_bounds, parse_range_measure
+
+#: Two-sided confidence of the objective's intervals.
+CONFIDENCE = 0.95
+_Z = 1.959963984540054
+
+
+@dataclasses.dataclass(frozen=True)
+class Objective:
+    """A statistic (``"mean"`` or ``"pNN"``, ``0 < NN < 100``) of a per-sample measure
+    (``"roll_difference"`` or ``"range:ERR:POINT"``, :mod:`~diffguide.studies.tolerance`)."""
+
+    measure: str
+    statistic: str = "mean"
+
+    def __post_init__(self):
+        if self.measure != "roll_difference":
+            parse_range_measure(self.measure)
+        if self.statistic != "mean":
+            p = _percent(self.statistic)
+            if p is None:
+                raise ValueError(f"objective statistic must be 'mean' or 'pNN' with 0 < NN < 100 "
+                                 f"(a percentile, e.g. p95), got {self.statistic!r}")
+
+    @property
+    def unit(self) -> str:
+        return measure_unit(self.measure)
+
+    @property
+    def quantile(self) -> float | None:
+        return None if self.statistic == "mean" else _percent(self.statistic) / 100
+
+    def text(self) -> str:
+        return f"{self.measure}:{self.statistic}"
+
+
+def _percent(text: str) -> float | None:
+    if not text.startswith("p"):
+        return None
+    try:
+        p = float(text[1:])
+    except ValueError:
+        return None
+    return p if 0 < p < 100 else None
+
+
+def parse_objective(text: str) -> Objective:
+    """``"roll-difference:mean"``, ``"roll_difference:p95"``, ``"range:EBX:P1:mean"`` →
+    :class:`Objective` (``ValueError`` naming the allowed forms)."""
+    measure, _, stat = text.replace("roll-difference", "roll_difference").rpartition(":")
+    if not measure:
+        raise ValueError(f"objective must be MEASURE:STATISTIC (MEASURE 'roll-difference' or "
+                         f"'range:ERR:POINT', STATISTIC 'mean' or 'pNN'), got {text!r}")
+    return Objective(measure, stat)
+
+
+def harrell_davis_weights(n: int, p: float) -> np.ndarray:
+    """Weights ``w_k`` (``k = 1..n``, summing to 1) of the Harrell–Davis ``p``-quantile
+    estimate ``Σ w_k m_(k)`` (module docstring)."""
+    from scipy.special import betainc
+
+    a, b = p * (n + 1), (1 - p) * (n + 1)
+    return np.diff(betainc(a, b, np.arange(n + 1) / n))
+
+
+@dataclasses.dataclass(frozen=True)
+class Estimate:
+    """The objective's value on a set of samples (SI: rad or m): ``value``, its 95 %
+    ``interval``, ``n`` samples, ``failed`` of them left out (equilibrium failed)."""
+
+    value: float
+    interval: tuple[float, float]
+    n: int
+    failed: int
+
+
+def statistic(objective: Objective, m: np.ndarray, dm: np.ndarray | None, ok: np.ndarray):
+    """``(Estimate, gradient)`` of ``objective`` over per-sample measures ``m`` (with
+    derivatives ``dm`` ``(n, k)``, or None), the samples with ``ok``."""
+    y = np.asarray(m, float)[ok]
+    n = y.size
+    if n < 2:
+        raise ValueError(f"only {n} of {len(m)} samples converged: no objective")
+    q = objective.quantile
+    if q is None:
+        w = np.full(n, 1 / n)
+        s = float(np.std(y, ddof=1))
+        v = float(y.mean())
+        interval = (v - _Z * s / math.sqrt(n), v + _Z * s / math.sqrt(n))
+        order = np.arange(n)
+    else:
+        order = np.argsort(y)
+        w = harrell_davis_weights(n, q)
+        v = float(w @ y[order])
+        lo, hi = order_statistic_bounds(n, q, CONFIDENCE)
+        interval = (float(y[order][lo - 1]), float(y[order][hi - 1]))
+    g = None if dm is None else w @ np.asarray(dm, float)[ok][order]
+    return Estimate(v, interval, n, int(len(m) - n)), g
+
+
+#: Resamples of the paired bootstrap of a percentile's improvement.
+BOOTSTRAP = 2000
+
+
+def paired_improvement(objective: Objective, before: np.ndarray, after: np.ndarray,
+                       ok: np.ndarray) -> Estimate:
+    """``S(before) − S(after)`` over the same samples (``ok``: converged in both) with its
+    95 % interval: for the mean, the normal approximation of the mean of the paired differences
+    ``m_i(start) − m_i(optimum)``; for a percentile, the paired bootstrap (:data:`BOOTSTRAP`
+    resamples of the samples, percentile interval; fixed seed)."""
+    b, a = np.asarray(before, float)[ok], np.asarray(after, float)[ok]
+    n = b.size
+    if n < 2:
+        raise ValueError(f"only {n} samples converged at both designs: no improvement estimate")
+    q = objective.quantile
+    if q is None:
+        d = b - a
+        v, s = float(d.mean()), float(d.std(ddof=1))
+        return Estimate(v, (v - _Z * s / math.sqrt(n), v + _Z * s / math.sqrt(n)), n,
+                        int(len(ok) - n))
+    w = harrell_davis_weights(n, q)
+    v = float(w @ np.sort(b) - w @ np.sort(a))
+    idx = np.random.default_rng(0).integers(0, n, size=(BOOTSTRAP, n))
+    boot = np.sort(b[idx], axis=1) @ w - np.sort(a[idx], axis=1) @ w
+    lo, hi = np.percentile(boot, [100 * (1 - CONFIDENCE) / 2, 100 * (1 + CONFIDENCE) / 2])
+    return Estimate(v, (float(lo), float(hi)), n, int(len(ok) - n))
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignResult:
+    """The optimum of :func:`design` (SI inside; ``units``/``scales`` convert to user units).
+
+    Attributes:
+        variables: names. units, scales: each variable's user unit and SI per user unit.
+        bounds: ``(lo, hi)`` (SI). start, optimum: the variables (SI).
+        objective: what was minimised. before, after: its :class:`Estimate` at ``start`` and
+            ``optimum`` on the optimisation samples; fresh_before, fresh_after: on fresh rails
+            (``fresh_seed``; None without a check). improvement: ``before − after`` on those
+            fresh rails with its paired 95 % interval (:func:`paired_improvement`); improved:
+            its interval lies above 0. sensitivities: ``d objective / d variable`` at the optimum
+            (SI per SI). constraints: ``(text, value at the optimum (SI), active)``.
+            active_bounds: ``(name, "lower" | "upper")``. history: one dict per evaluation
+            (``x`` SI, ``objective``, ``gradient``, ``failed``, ``iteration``). evaluations:
+            objective-and-gradient evaluations; sample_sweeps: sample sweeps (each with its
+            derivatives) in them. success, message: SLSQP's. seconds: wall time.
+    """
+
+    variables: tuple[str, ...]
+    units: tuple[str, ...]
+    scales: tuple[float, ...]
+    bounds: tuple[tuple[float, float], ...]
+    start: np.ndarray
+    optimum: np.ndarray
+    objective: Objective
+    before: Estimate
+    after: Estimate
+    fresh_before: Estimate | None
+    fresh_after: Estimate | None
+    improvement: Estimate | None
+    sensitivities: np.ndarray
+    constraints: tuple
+    active_bounds: tuple
+    history: tuple
+    evaluations: int
+    sample_sweeps: int
+    n_samples: int
+    seed: int
+    fresh_seed: int | None
+    success: bool
+    message: str
+    seconds: float
+
+    @property
+    def improved(self) -> bool | None:
+        """The improvement on fresh rails exceeds its 95 % interval (its lower end > 0)."""
+        if self.improvement is None:
+            return None
+        return self.improvement.interval[0] > 0
+
+
+def design_knots(spec: MachineSpec, positions, correlation_length: float, bounds_spacing=None):
+    """Rail knots ``(start, spacing, n)`` covering what the rolling elements visit over
+    ``positions`` (m) at every carriage spacing up to ``bounds_spacing[1]`` (m; None: the
+    machine's)."""
+    machine = build_machine(spec)
+    lo, hi = visited_range(machine, positions)
+    if bounds_spacing is not None:
+        cx = spec.guideway.carriage_x
+        grow = max(0.0, (bounds_spacing[1] - (cx[1] - cx[0])) / 2)
+        lo, hi = lo - grow, hi + grow
+    knots = default_knots(correlation_length)
+    if lo < knots[0] or hi > knots[0] + (knots[2] - 3) * knots[1]:
+        knots = default_knots(correlation_length, start=lo - 0.05, end=hi + 0.05)
+    return knots
+
+
+def _rails(seed, n, rms, correlation_length, kernel, planes, mounting, knots):
+    model = GaussianRailModel(rms, correlation_length, kernel, planes)
+    return sample_rails(seed, n, model, None if mounting in (None, "none") else mounting,
+                        knots=knots)
+
+
+def _checked(spec, names, bounds, obj, n_samples, check_samples, constraints):
+    """The bounds (SI) after checking :func:`design`'s arguments (``ValueError`` naming them)."""
+    if not names or len(set(names)) != len(names):
+        raise ValueError(f"variables must be distinct names from {', '.join(VARIABLES)}, got "
+                         f"{list(names)}")
+    if bounds is not None and len(bounds) != len(names):
+        raise ValueError(f"bounds: one (lo, hi) per variable ({len(names)}), got {len(bounds)}")
+    bounds = check_bounds(spec, names, [None] * len(names) if bounds is None else bounds)
+    if not (int(n_samples) == n_samples and n_samples >= 8):
+        raise ValueError(f"n_samples must be an integer >= 8, got {n_samples!r}")
+    if not (int(check_samples) == check_samples and check_samples >= 0):
+        raise ValueError(f"check_samples must be an integer >= 0, got {check_samples!r}")
+    if obj.quantile is not None:  # enough samples for the percentile's interval (or an error)
+        for what, n in (("n_samples", n_samples), ("check_samples", check_samples)):
+            try:
+                if n:
+                    order_statistic_bounds(int(n), obj.quantile, CONFIDENCE)
+            except ValueError as exc:
+                raise ValueError(f"{what}: {exc}") from None
+    for c in constraints:
+        if not isinstance(c, Constraint):
+            raise ValueError(f"constraints must be Constraint objects, got {c!r}")
+    return bounds
+
+
+def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=None,
+           objective: Objective | str = "roll_difference:mean",
+           constraints: Sequence[Constraint] = (), rail_rms: float = 1e-6,
+           correlation_length: float = 0.2, kernel: str = "squared_exponential",
+           planes: tuple[str, ...] = ("vertical", "horizontal"),
+           mounting: MountingTolerance | str | None = None, n_samples: int = 64,
+           check_samples: int = 64, seed: int = 0, x_ref: float = 0.0, knots=None,
+           chunk_size: int | None = None, devices=None, max_iterations: int = 30,
+           ftol: float = 1e-6,
+           progress: Callable[[str], None] | None = None) -> DesignResult:
+    """Minimise ``objective`` over the design ``variables`` of ``spec`` (module docstring).
+
+    Arguments:
+        spec: the machine (:class:`~diffguide.machine.spec.MachineSpec`, SI; its mesh as
+            given). positions: table positions (m). variables: names from
+            :data:`~diffguide.studies.design_space.VARIABLES`. bounds: one ``(lo, hi)`` per
+            variable (SI), or None for its default; None: all defaults. The start is the
+            machine's own values, clipped into the bounds.
+        objective: an :class:`Objective` or its text (:func:`parse_objective`).
+        constraints: :class:`~diffguide.studies.design_space.Constraint` s (SI).
+        rail_rms (m), correlation_length (m), kernel, planes, mounting: the random rails
+            (:class:`~diffguide.studies.random_rails.GaussianRailModel`, mounting class of rail
+            2). n_samples: common random draws of the optimisation; check_samples: fresh draws
+            (seed ``seed + 1``) re-evaluating the start and the optimum (0: none).
+        x_ref: reference position (m). knots: the rails' ``(start, spacing, n)`` (default
+            :func:`design_knots`). chunk_size: samples per compiled call. devices: JAX devices
+            to shard the samples over (default ``jax.devices()``).
+        max_iterations, ftol: SLSQP's. progress: called with one line per evaluation.
+    """
+    from scipy.optimize import minimize
+
+    t0 = time.perf_counter()
+    obj = parse_objective(objective) if isinstance(objective, str) else objective
+    names = tuple(variables)
+    bounds = _checked(spec, names, bounds, obj, n_samples, check_samples, constraints)
+    x0 = np.clip(spec_values(spec, names), [b[0] for b in bounds], [b[1] for b in bounds])
+    lo, width = np.array([b[0] for b in bounds]), np.array([b[1] - b[0] for b in bounds])
+    if knots is None:
+        sb = bounds[names.index("carriage_spacing")] if "carriage_spacing" in names else None
+        knots = design_knots(spec, positions, correlation_length, sb)
+    rails = _rails(seed, int(n_samples), rail_rms, correlation_length, kernel, planes, mounting,
+                   knots)
+    sweep = DesignSweep(spec, names, rails, positions, obj.measure, x0=x0, x_ref=x_ref,
+                        chunk_size=chunk_size, devices=devices)
+    say = progress or (lambda line: None)
+    history: list[dict] = []
+    cache: dict[bytes, tuple] = {}
+    iteration = [0]
+
+    def evaluate(x):
+        key = np.asarray(x, float).tobytes()
+        if key not in cache:
+            m, dm, ok = sweep(x)
+            est, g = statistic(obj, m, dm, ok)
+            cache[key] = (est, g)
+            history.append({"x": np.array(x, float), "objective": est.value, "gradient": g,
+                            "interval": est.interval, "failed": est.failed,
+                            "iteration": iteration[0]})
+            say(f"  evaluation {len(history)} (iteration {iteration[0]}): " + ", ".join(
+                f"{n} {v / VARIABLES[n].scale:.5g} {VARIABLES[n].unit}" for n, v in zip(names, x))
+                + f": {obj.text()} {est.value * 1e6:.5g} {obj.unit}"
+                + (f" ({est.failed} samples failed)" if est.failed else ""))
+        return cache[key]
+
+    before, _ = evaluate(x0)
+    f0 = max(abs(before.value), 1e-30)
+
+    def fun(u):
+        return evaluate(lo + width * u)[0].value / f0
+
+    def jac(u):
+        return evaluate(lo + width * u)[1] * width / f0
+
+    cons = [_scipy_constraint(spec, names, c, lo, width) for c in constraints]
+
+    def advance(_):
+        iteration[0] += 1
+
+    res = minimize(fun, (x0 - lo) / width, jac=jac, method="SLSQP",
+                   bounds=[(0.0, 1.0)] * len(names), constraints=cons, callback=advance,
+                   options={"maxiter": int(max_iterations), "ftol": float(ftol)})
+    u = np.clip(res.x, 0.0, 1.0)
+    x_opt = lo + width * u
+    after, grad = evaluate(x_opt)
+    final = [(c.text(), float(c.slack(apply_all(spec, names, jnp.asarray(x_opt)))))
+             for c in constraints]
+    constraint_rows = tuple((t, s, abs(s) <= 1e-6 * max(1.0, abs(c.value)))
+                            for (t, s), c in zip(final, constraints))
+    active_bounds = tuple((n, "lower") if ui <= 1e-6 else (n, "upper")
+                          for n, ui in zip(names, u) if ui <= 1e-6 or ui >= 1 - 1e-6)
+    fresh_before = fresh_after = improvement = None
+    if check_samples:
+        fresh = _rails(seed + 1, int(check_samples), rail_rms, correlation_length, kernel,
+                       planes, mounting, knots)
+        check = DesignSweep(spec, names, fresh, positions, obj.measure, x0=x0, x_ref=x_ref,
+                            chunk_size=sweep.chunk, devices=devices)  # the same compiled chunk
+        mb, _, okb = check(x0)
+        ma, _, oka = check(x_opt)
+        fresh_before = statistic(obj, mb, None, okb)[0]
+        fresh_after = statistic(obj, ma, None, oka)[0]
+        improvement = paired_improvement(obj, mb, ma, okb & oka)
+        say(f"  fresh rails (seed {seed + 1}, {check_samples} samples): start "
+            f"{_text(fresh_before)}, optimum {_text(fresh_after)}, improvement "
+            f"{_text(improvement)} {obj.unit}")
+    return DesignResult(
+        names, tuple(VARIABLES[n].unit for n in names), tuple(VARIABLES[n].scale for n in names),
+        bounds, x0, x_opt, obj, before, after, fresh_before, fresh_after, improvement,
+        np.asarray(grad),
+        constraint_rows, active_bounds, tuple(history), len(history),
+        len(history) * int(n_samples) + (2 * int(check_samples) if check_samples else 0),
+        int(n_samples), int(seed), seed + 1 if check_samples else None, bool(res.success),
+        str(res.message), time.perf_counter() - t0)
+
+
+def _text(e: Estimate) -> str:
+    return f"{e.value * 1e6:.4g} ({e.interval[0] * 1e6:.4g} .. {e.interval[1] * 1e6:.4g})"
+
+
+def _scipy_constraint(spec, names, c: Constraint, lo, width) -> dict:
+    """SLSQP's form of ``c`` on the scaled variables ``u``: ``slack(u) ≥ 0`` (or ``= 0``),
+    scaled by the constraint's value, with its Jacobian by forward mode."""
+    scale = max(abs(c.value), 1e-12)
+
+    def slack(x):
+        return c.slack(apply_all(spec, names, x)) / scale
+
+    d = jax.jacfwd(slack)
+
+    return {"type": "eq" if c.kind == "=" else "ineq",
+            "fun": lambda u: float(slack(jnp.asarray(lo + width * u))),
+            "jac": lambda u: np.asarray(d(jnp.asarray(lo + width * u))) * width}
+
+
+__all__ = ["CONSTRAINTS", "DesignResult", "Estimate", "Objective", "design",
+           "harrell_davis_weights", "paired_improvement", "parse_objective", "statistic"]

@@ -1,0 +1,253 @@
+r"""What a design study may vary, and what it may constrain: one table entry per traced variable
+and per constraint, so that a newly traceable field of the specification (rail spacing, a rib
+depth) is one more entry.
+
+**Variables** (:data:`VARIABLES`): a field of :class:`~diffguide.machine.spec.MachineSpec` that
+:func:`~diffguide.machine.build.build_machine` accepts traced, with how to set it, its user unit
+and its default bounds:
+
+============================  ======  ================================================
+``thickness``                 mm      the plate's equivalent thickness; default ½..2 × the machine's
+``carriage_spacing``          mm      distance between the two carriages of a rail; default: the
+                                      range where the mesh keeps its topology
+                                      (:func:`carriage_spacing_range`)
+``preload_fraction``          %       preload as a fraction of the capacity C; default 1 .. 13 %
+``E``                         GPa     the table's Young's modulus; default ½..2 × the machine's
+============================  ======  ================================================
+
+**Constraints** (:data:`CONSTRAINTS`), each a function of the specification (SI), traced:
+
+- ``mass``: the table's mass ``ρ·L·W·t`` (kg; the plate's volume × density — ribs, where a
+  machine has them, are not counted);
+- ``preload``: the total preload force ``n_c·f·C`` of the ``n_c`` carriages (N);
+- ``spacing``: the carriage spacing less the room on the table, ``s − (L − b)`` (m; ``b`` the
+  carriage footprint's length): ``spacing<=0`` keeps the carriages under the table.
+"""
+
+import dataclasses
+from collections.abc import Callable
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ..machine.build import table_from_spec, with_overrides
+from ..machine.spec import MachineSpec
+
+#: The gap (m) a moved footprint line keeps from the next fixed grid line at the ends of
+#: :func:`carriage_spacing_range`: no degenerate (zero-length) element.
+MIN_GAP = 1e-3
+
+
+@dataclasses.dataclass(frozen=True)
+class Variable:
+    """A traced design variable: ``name`` (a :func:`~diffguide.machine.build.with_overrides`
+    keyword), its ``unit`` and ``scale`` (SI per user unit), ``value(spec)`` its current value
+    (SI) and ``bounds(spec)`` its default bounds (SI)."""
+
+    name: str
+    unit: str
+    scale: float
+    value: Callable[[MachineSpec], float]
+    bounds: Callable[[MachineSpec], tuple[float, float]]
+    what: str
+
+    def apply(self, spec: MachineSpec, x) -> MachineSpec:
+        """``spec`` with this variable set to ``x`` (SI; may be traced)."""
+        return with_overrides(spec, **{self.name: x})
+
+
+def _spacing(spec: MachineSpec) -> float:
+    s = spec.guideway.carriage_spacing
+    cx = spec.guideway.carriage_x
+    return float(cx[1] - cx[0]) if s is None else float(s)
+
+
+def carriage_spacing_range(spec: MachineSpec) -> tuple[float, float]:
+    """The carriage spacings (m) a traced ``carriage_spacing`` reaches on ``spec``'s mesh.
+
+    :func:`~diffguide.machine.build.build_machine` moves each carriage's footprint lines (edges
+    and centre) with the carriage, by ``(s − s₀)·(x₀ − x̄)/s₀``, and keeps every other grid
+    line; the spacing is valid while the lines keep their order. The range is the one where
+    every moved line stays :data:`MIN_GAP` from its fixed neighbours (checked against rebuilt
+    machines in the tests)."""
+    model = table_from_spec(spec)
+    x0 = np.asarray(spec.guideway.carriage_x, dtype=float)
+    s0 = float(x0[-1] - x0[0])
+    per = (x0 - x0.mean()) / s0
+    xs = np.asarray(model.mesh.xs, dtype=float)
+    rate = np.zeros(len(xs))  # d(line x)/d(spacing)
+    for patch in model.patches[:-1]:
+        k = int(np.argmin(abs(x0 - patch.x)))
+        lo, hi = patch.box[:2]
+        on = np.isclose(xs[:, None], [lo, patch.x, hi], rtol=0, atol=1e-9).any(axis=1)
+        rate = np.where(on, per[k], rate)
+    gap, d_rate = np.diff(xs), np.diff(rate)  # gap + (s - s0)·d_rate > MIN_GAP
+    lo_s, hi_s = -np.inf, np.inf
+    for g, r in zip(gap, d_rate):
+        if r > 0:
+            lo_s = max(lo_s, s0 + (MIN_GAP - g) / r)
+        elif r < 0:
+            hi_s = min(hi_s, s0 + (MIN_GAP - g) / r)
+    lo_s = max(lo_s, spec.guideway.footprint[0] + MIN_GAP)  # carriages do not overlap
+    return float(lo_s), float(hi_s)
+
+
+def _scaled(spec: MachineSpec, x: float, lo: float, hi: float) -> tuple[float, float]:
+    return (lo * x, hi * x)
+
+
+VARIABLES: dict[str, Variable] = {
+    v.name: v
+    for v in (
+        Variable("thickness", "mm", 1e-3, lambda s: float(s.table.thickness),
+                 lambda s: _scaled(s, float(s.table.thickness), 0.5, 2.0),
+                 "equivalent plate thickness of the table"),
+        Variable("carriage_spacing", "mm", 1e-3, _spacing, carriage_spacing_range,
+                 "distance between the two carriages on each rail"),
+        Variable("preload_fraction", "%", 1e-2, lambda s: float(s.carriage.preload_fraction),
+                 lambda s: (0.01, 0.13), "preload as a fraction of the dynamic capacity C"),
+        Variable("E", "GPa", 1e9, lambda s: float(s.table.material.E),
+                 lambda s: _scaled(s, float(s.table.material.E), 0.5, 2.0),
+                 "Young's modulus of the table"),
+    )
+}
+
+
+def table_mass(spec: MachineSpec):
+    """The table plate's mass ``ρ·L·W·t`` (kg; may be traced)."""
+    t = spec.table
+    return t.material.rho * t.length * t.width * t.thickness
+
+
+def total_preload(spec: MachineSpec):
+    """The total preload force of the carriages, ``n_c·f·C`` (N; may be traced)."""
+    g, c = spec.guideway, spec.carriage
+    return len(g.rail_y) * len(g.carriage_x) * c.preload_fraction * c.capacity
+
+
+def spacing_margin(spec: MachineSpec):
+    """Carriage spacing less the table length minus the carriage length, ``s − (L − b)`` (m)."""
+    s = spec.guideway.carriage_spacing
+    if s is None:
+        s = spec.guideway.carriage_x[1] - spec.guideway.carriage_x[0]
+    return s - (spec.table.length - spec.guideway.footprint[0])
+
+
+@dataclasses.dataclass(frozen=True)
+class Quantity:
+    """A constrainable quantity: ``name``, ``unit``, ``scale`` (SI per user unit), ``of(spec)``
+    (SI, traced)."""
+
+    name: str
+    unit: str
+    scale: float
+    of: Callable[[MachineSpec], object]
+    what: str
+
+
+CONSTRAINTS: dict[str, Quantity] = {
+    q.name: q
+    for q in (
+        Quantity("mass", "kg", 1.0, table_mass, "table plate mass (volume × density)"),
+        Quantity("preload", "N", 1.0, total_preload, "total preload force of the carriages"),
+        Quantity("spacing", "mm", 1e-3, spacing_margin,
+                 "carriage spacing − (table length − carriage length)"),
+    )
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class Constraint:
+    """``quantity kind value``: ``kind`` is ``"<="``, ``">="`` or ``"="``; ``value`` in SI."""
+
+    quantity: str
+    kind: str
+    value: float
+
+    def __post_init__(self):
+        if self.quantity not in CONSTRAINTS:
+            raise ValueError(f"constraint quantity must be one of {', '.join(CONSTRAINTS)}, "
+                             f"got {self.quantity!r}")
+        if self.kind not in ("<=", ">=", "="):
+            raise ValueError(f"constraint kind must be '<=', '>=' or '=', got {self.kind!r}")
+        if not np.isfinite(self.value):
+            raise ValueError(f"constraint {self.quantity}: value must be finite, got "
+                             f"{self.value!r}")
+
+    def slack(self, spec: MachineSpec):
+        """``≥ 0`` when satisfied (``= 0`` for an equality), in SI (traced)."""
+        q = jnp.asarray(CONSTRAINTS[self.quantity].of(spec), dtype=float)
+        return self.value - q if self.kind == "<=" else q - self.value
+
+    def text(self) -> str:
+        q = CONSTRAINTS[self.quantity]
+        return f"{self.quantity} {self.kind} {self.value / q.scale:g} {q.unit}"
+
+
+def parse_constraint(text: str) -> Constraint:
+    """``"mass<=180"`` (user units: kg, N, mm) → :class:`Constraint` (SI); ``ValueError`` naming
+    the allowed forms."""
+    for kind in ("<=", ">=", "="):
+        if kind in text:
+            name, _, value = text.partition(kind)
+            name = name.strip()
+            try:
+                v = float(value)
+            except ValueError:
+                v = None
+            if name in CONSTRAINTS and v is not None and np.isfinite(v):
+                return Constraint(name, kind, v * CONSTRAINTS[name].scale)
+            break
+    forms = ", ".join(f"{q.name}<=V ({q.unit})" for q in CONSTRAINTS.values())
+    raise ValueError(f"a constraint is QUANTITY<=V, QUANTITY>=V or QUANTITY=V with QUANTITY one of "
+                     f"{forms}; got {text!r}")
+
+
+def apply_all(spec: MachineSpec, names, x) -> MachineSpec:
+    """``spec`` with the variables ``names`` set to ``x[i]`` (SI; may be traced)."""
+    for i, name in enumerate(names):
+        spec = VARIABLES[name].apply(spec, x[i])
+    return spec
+
+
+def check_bounds(spec: MachineSpec, names, bounds) -> tuple[tuple[float, float], ...]:
+    """Each variable's bounds (SI; ``None``: its default), checked: known name, ``lo < hi``,
+    within the default range of ``carriage_spacing`` (the mesh's) and of positive quantities."""
+    out = []
+    for name, b in zip(names, bounds):
+        if name not in VARIABLES:
+            raise ValueError(f"design variable must be one of {', '.join(VARIABLES)}, got "
+                             f"{name!r}")
+        v = VARIABLES[name]
+        default = v.bounds(spec)
+        lo, hi = default if b is None else (float(b[0]), float(b[1]))
+        u = v.scale
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
+            raise ValueError(f"{name}: bounds must be finite with 0 < lo < hi, got "
+                             f"{lo / u:g}:{hi / u:g} {v.unit}")
+        if name == "carriage_spacing" and not (default[0] <= lo and hi <= default[1]):
+            raise ValueError(
+                f"carriage_spacing: bounds {lo / u:g}:{hi / u:g} {v.unit} leave the range "
+                f"{default[0] / u:.4g}:{default[1] / u:.4g} {v.unit} where this machine's mesh "
+                "keeps its topology (footprint lines would pass other grid lines); refine or "
+                "coarsen the mesh, or move guideway.carriage_x")
+        if name == "preload_fraction" and not hi < 1:
+            raise ValueError(f"preload_fraction: bounds must lie in (0, 100) %, got "
+                             f"{lo / u:g}:{hi / u:g} %")
+        out.append((lo, hi))
+    return tuple(out)
+
+
+def spec_values(spec: MachineSpec, names) -> np.ndarray:
+    """The current values (SI) of the variables ``names`` on ``spec``."""
+    return np.array([VARIABLES[n].value(spec) for n in names], dtype=float)
+
+
+def fixed_spec(spec: MachineSpec) -> MachineSpec:
+    """``spec`` with ``carriage_spacing`` made explicit (its configuration's value when unset), so
+    that every design iterate traces the same computation."""
+    if spec.guideway.carriage_spacing is None:
+        spec = eqx.tree_at(lambda m: m.guideway.carriage_spacing, spec, _spacing(spec),
+                           is_leaf=lambda x: x is None)
+    return spec
