@@ -39,7 +39,6 @@ from diffguide.studies.design_space import (
     CONSTRAINTS,
     MIN_GAP,
     VARIABLES,
-    carriage_spacing_range,
     parse_constraint,
     table_mass,
 )
@@ -147,15 +146,35 @@ def test_intervals():
     assert p90.interval[0] < 0.5 < p90.interval[1]
 
 
-def test_spacing_range_is_where_the_mesh_keeps_its_topology():
-    lo, hi = carriage_spacing_range(SPEC)
-    assert lo < 0.32 < hi
+@pytest.mark.parametrize("name, nominal", [("carriage_spacing", 0.32), ("rail_spacing", 0.34)])
+def test_spacing_range_is_where_the_mesh_keeps_its_topology(name, nominal):
+    lo, hi = VARIABLES[name].bounds(SPEC)
+    assert lo < nominal < hi
     for s in (lo, hi):
-        build_machine(SPEC, carriage_spacing=s)  # valid at both ends
-    with pytest.raises(Exception, match="carriage_spacing moves a carriage footprint"):
-        build_machine(SPEC, carriage_spacing=hi + 3 * MIN_GAP)
-    with pytest.raises(Exception, match="carriage_spacing moves a carriage footprint"):
-        build_machine(SPEC, carriage_spacing=lo - 3 * MIN_GAP)
+        build_machine(SPEC, **{name: s})  # valid at both ends
+    for s in (hi + 3 * MIN_GAP, lo - 3 * MIN_GAP):
+        with pytest.raises(Exception, match=f"{name} = .* moves a footprint's grid line"):
+            build_machine(SPEC, **{name: s})
+
+
+def test_rail_spacing_derivative_matches_central_differences_of_rebuilt_machines(rails):
+    """The rails moved apart: rebuilt with ``rail_y = ±s/2`` (mesh lines where the new
+    footprints are), against the design sweep's forward-mode derivative (roll range at P1)."""
+    s0 = 0.34
+    sw = DesignSweep(SPEC, ("rail_spacing",), rails, X, "range:EAX:P1", x0=np.array([s0]),
+                     chunk_size=N)
+    m, dm, ok = sw(np.array([s0]))
+    assert ok.all()
+
+    def at(s):
+        g = dataclasses.replace(SPEC.guideway, rail_y=(-s / 2, s / 2))
+        machine = build_machine(eqx.tree_at(lambda sp: sp.guideway, SPEC, g))
+        return measure_values(batched_sweep(machine, rails, X, chunk_size=N), "range:EAX:P1")
+
+    np.testing.assert_allclose(m, at(s0), rtol=1e-9)
+    h = 1e-5 * s0
+    fd = (at(s0 + h) - at(s0 - h)) / (2 * h)
+    np.testing.assert_allclose(dm[:, 0], fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
 
 
 def _grid_argmin(rails, ts, ss, measure, feasible=lambda t, s: True):

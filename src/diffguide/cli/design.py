@@ -13,15 +13,16 @@ from .montecarlo import add_study_arguments, check_study, split_cpu_into_devices
 # diffguide.studies.design_space.VARIABLES / CONSTRAINTS, named here so that --help imports no
 # JAX (tests/test_design.py checks they agree): name -> (user unit, SI per user unit)
 VARIABLE_UNITS = {"thickness": ("mm", 1e-3), "carriage_spacing": ("mm", 1e-3),
-                  "preload_fraction": ("%", 1e-2), "E": ("GPa", 1e9)}
+                  "rail_spacing": ("mm", 1e-3), "preload_fraction": ("%", 1e-2),
+                  "E": ("GPa", 1e9)}
 CONSTRAINT_UNITS = {"mass": "kg", "preload": "N", "spacing": "mm"}
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "design",
-        help="the design (thickness, carriage spacing, preload, E) that minimises an error "
-        "statistic over random rails",
+        help="the design (thickness, carriage and rail spacing, preload, E) that minimises an "
+        "error statistic over random rails",
         description="Minimise the mean or a percentile of an error measure over random rails "
         "(the same rails at every trial design: common random numbers) over the chosen design "
         "variables, within bounds and constraints, by SLSQP with exact gradients (forward-mode "
@@ -32,9 +33,9 @@ def add_parser(sub) -> None:
     add_machine_arguments(p)
     p.add_argument("--vary", action="append", required=True, metavar="NAME[=LO:HI]",
                    help="a design variable and its bounds in user units: thickness (mm), "
-                   "carriage_spacing (mm), preload_fraction (%%), E (GPa); without =LO:HI its "
-                   "default bounds (carriage_spacing: the range where the mesh keeps its "
-                   "topology). Repeat for several")
+                   "carriage_spacing (mm), rail_spacing (mm), preload_fraction (%%), E (GPa); "
+                   "without =LO:HI its default bounds (the spacings: the range where the mesh "
+                   "keeps its topology). Repeat for several")
     p.add_argument("--objective", default="roll-difference:mean",
                    help="MEASURE:STATISTIC; MEASURE 'roll-difference' (µrad) or "
                    "'range:ERR:POINT' (e.g. range:EBX:P1); STATISTIC 'mean' or 'pNN' "

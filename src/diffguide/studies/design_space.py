@@ -11,6 +11,8 @@ and its default bounds:
 ``carriage_spacing``          mm      distance between the two carriages of a rail; default: the
                                       range where the mesh keeps its topology
                                       (:func:`carriage_spacing_range`)
+``rail_spacing``              mm      distance between the two rails; default: the range where the
+                                      mesh keeps its topology (:func:`rail_spacing_range`)
 ``preload_fraction``          %       preload as a fraction of the capacity C; default 1 .. 13 %
 ``E``                         GPa     the table's Young's modulus; default ½..2 × the machine's
 ============================  ======  ================================================
@@ -31,7 +33,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ..machine.build import table_from_spec, with_overrides
+from ..machine.build import layout_ranges, with_overrides
 from ..machine.spec import MachineSpec
 
 #: The gap (m) a moved footprint line keeps from the next fixed grid line at the ends of
@@ -63,34 +65,40 @@ def _spacing(spec: MachineSpec) -> float:
     return float(cx[1] - cx[0]) if s is None else float(s)
 
 
+def _layout_range(spec: MachineSpec, name: str) -> tuple[float, float]:
+    """The range (m) of the traced layout variable ``name`` on ``spec``'s mesh
+    (:func:`~diffguide.machine.build.layout_ranges`), :data:`MIN_GAP` inside each open end:
+    no degenerate (zero-length) element at a bound."""
+    rng = layout_ranges(spec)[name]
+    if rng is None:
+        raise ValueError(f"{name} cannot be varied on this machine's layout (a footprint on the "
+                         "table edge or sharing a grid line with one it does not move)")
+    lo, hi = rng
+    return float(lo + MIN_GAP), float(hi - MIN_GAP)
+
+
 def carriage_spacing_range(spec: MachineSpec) -> tuple[float, float]:
     """The carriage spacings (m) a traced ``carriage_spacing`` reaches on ``spec``'s mesh.
 
     :func:`~diffguide.machine.build.build_machine` moves each carriage's footprint lines (edges
-    and centre) with the carriage, by ``(s − s₀)·(x₀ − x̄)/s₀``, and keeps every other grid
-    line; the spacing is valid while the lines keep their order. The range is the one where
-    every moved line stays :data:`MIN_GAP` from its fixed neighbours (checked against rebuilt
-    machines in the tests)."""
-    model = table_from_spec(spec)
-    x0 = np.asarray(spec.guideway.carriage_x, dtype=float)
-    s0 = float(x0[-1] - x0[0])
-    per = (x0 - x0.mean()) / s0
-    xs = np.asarray(model.mesh.xs, dtype=float)
-    rate = np.zeros(len(xs))  # d(line x)/d(spacing)
-    for patch in model.patches[:-1]:
-        k = int(np.argmin(abs(x0 - patch.x)))
-        lo, hi = patch.box[:2]
-        on = np.isclose(xs[:, None], [lo, patch.x, hi], rtol=0, atol=1e-9).any(axis=1)
-        rate = np.where(on, per[k], rate)
-    gap, d_rate = np.diff(xs), np.diff(rate)  # gap + (s - s0)·d_rate > MIN_GAP
-    lo_s, hi_s = -np.inf, np.inf
-    for g, r in zip(gap, d_rate):
-        if r > 0:
-            lo_s = max(lo_s, s0 + (MIN_GAP - g) / r)
-        elif r < 0:
-            hi_s = min(hi_s, s0 + (MIN_GAP - g) / r)
-    lo_s = max(lo_s, spec.guideway.footprint[0] + MIN_GAP)  # carriages do not overlap
-    return float(lo_s), float(hi_s)
+    and centre) with the carriage and keeps every other grid line; the spacing is valid while
+    the lines keep their order (:func:`~diffguide.machine.build.layout_ranges`). The range is
+    that, :data:`MIN_GAP` inside each end, and the carriages of a rail do not overlap."""
+    lo, hi = _layout_range(spec, "carriage_spacing")
+    return max(lo, float(spec.guideway.footprint[0]) + MIN_GAP), hi
+
+
+def rail_spacing_range(spec: MachineSpec) -> tuple[float, float]:
+    """The rail spacings (m) a traced ``rail_spacing`` reaches on ``spec``'s mesh (as
+    :func:`carriage_spacing_range`; the footprints of the two rails do not overlap)."""
+    lo, hi = _layout_range(spec, "rail_spacing")
+    return max(lo, float(spec.guideway.footprint[1]) + MIN_GAP), hi
+
+
+def _rail_spacing(spec: MachineSpec) -> float:
+    s = spec.guideway.rail_spacing
+    ry = spec.guideway.rail_y
+    return float(ry[-1] - ry[0]) if s is None else float(s)
 
 
 def _scaled(spec: MachineSpec, x: float, lo: float, hi: float) -> tuple[float, float]:
@@ -105,6 +113,8 @@ VARIABLES: dict[str, Variable] = {
                  "equivalent plate thickness of the table"),
         Variable("carriage_spacing", "mm", 1e-3, _spacing, carriage_spacing_range,
                  "distance between the two carriages on each rail"),
+        Variable("rail_spacing", "mm", 1e-3, _rail_spacing, rail_spacing_range,
+                 "distance between the two rails"),
         Variable("preload_fraction", "%", 1e-2, lambda s: float(s.carriage.preload_fraction),
                  lambda s: (0.01, 0.13), "preload as a fraction of the dynamic capacity C"),
         Variable("E", "GPa", 1e9, lambda s: float(s.table.material.E),
