@@ -196,8 +196,12 @@ def config_machine(cfg: dict, *, nx: int | None = None, ny: int | None = None,
     spec = with_overrides(spec, points=points, preload_fraction=overrides.get("preload_fraction"))
     data = _description(src["file"])
     pts = resolve_points(src["file"], data, interface_names(spec))
-    machine = build_imported_machine(spec, data.matrix, data.coords, data.interfaces, pts,
-                                     weight=data.weight)
+    try:
+        machine = build_imported_machine(spec, data.matrix, data.coords, data.interfaces, pts,
+                                         weight=data.weight)
+    except KeyError as exc:  # a point or interface without its node: bad input, named
+        raise ValueError(f"{exc.args[0]} (the table of {src['given']}: measure or predict at "
+                         f"its retained points, {', '.join(data.points)})") from None
     if stiffness_scale is not None:
         machine = eqx.tree_at(lambda m: m.table, machine,
                               scaled_table(machine.table, stiffness_scale))
