@@ -209,9 +209,11 @@ def _measurements(mk, errors, positions, rng):
 
 @pytest.fixture(scope="module")
 def stiffer(tmp_path_factory):
-    """Fits with the imported table as given (scale prior [1, 0.5, 2], preload prior as
-    ``diffguide fit`` has it) to data simulated on the same table 1.5 times stiffer, the
-    bundled data's truth rails, on a coarse grid (every 50 mm), for three noise seeds."""
+    """Fits with the imported table as given (the default scale prior [1, 0.5, 2]; the preload
+    known) to data simulated on the same table 1.5 times stiffer, the bundled data's truth
+    rails, on a coarse grid (every 50 mm), for three noise seeds. (With the preload estimated
+    too, as ``diffguide fit`` does by default, two seeds gave 1.11 ± 0.29 and 1.37 ± 0.28:
+    within 2σ, but the preload and the stiffness trade off, and each fit took twice as long.)"""
     from diffguide.inverse import fit_rails
 
     mk = _maker()
@@ -222,8 +224,8 @@ def stiffer(tmp_path_factory):
     je = dg.joint_errors(truth_machine, mk.truth_rails(), x)
     assert np.all(np.asarray(je.converged))
     errors = np.asarray(je.errors)
-    family = MachineFamily.build(lambda **kw: config_machine(cfg, points=pts, **kw),
-                                 structure_priors(cfg))
+    priors = StructurePriors(stiffness=structure_priors(cfg).stiffness)
+    family = MachineFamily.build(lambda **kw: config_machine(cfg, points=pts, **kw), priors)
     fits = [fit_rails(family, _measurements(mk, errors, x, np.random.default_rng(s)))
             for s in SEEDS]
     return mk, cfg, fits
@@ -237,7 +239,7 @@ def test_the_stiffness_scale_of_a_stiffer_table_within_its_2_sigma(stiffer):
         k = fit.structure["stiffness"]
         assert abs(k["value"] - TRUE_SCALE) <= 2 * k["sigma"], k
         assert k["determined"], k  # the data shrink the prior's σ (0.35 in ln s)
-        assert "thickness" not in fit.structure
+        assert list(fit.structure) == ["stiffness"]
 
 
 @pytest.mark.slow
@@ -270,8 +272,7 @@ def test_predict_on_the_imported_table(stiffer):
     pred = predict(fit, spec, {"P1": mk.points()["P1"]}, x, measured_points=mk.points(),
                    make_machine=make)
     fitted = config_machine(cfg, points=mk.points(),
-                            stiffness_scale=fit.structure["stiffness"]["value"],
-                            preload_fraction=fit.structure["preload"]["value"])
+                            stiffness_scale=fit.structure["stiffness"]["value"])
     ref = np.asarray(dg.joint_errors(fitted, fit.rails(), x).errors)[:, 0]
     np.testing.assert_allclose(pred.errors[:, 0, 3:], ref[:, 3:], atol=1e-9)
     assert np.all(pred.sigma[np.abs(x) > 0.1, 0, 3:5] > 0)
