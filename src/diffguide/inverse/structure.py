@@ -133,8 +133,9 @@ class MachineFamily(eqx.Module):
             on a leading axis.
         nodes: the nodes ``ln t`` (static).
         thickness0: the base machine's thickness (m). preload0: its preload fraction.
-        priors: the priors (static). stiffness0: the base machine's stiffness scale (its
-        table is the given machine's scaled by it).
+        priors: the priors (static).
+        stiffness0: the base machine's stiffness scale (its table is the given machine's
+            scaled by it).
     """
 
     base: eqx.Module
