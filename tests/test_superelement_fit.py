@@ -233,6 +233,8 @@ def stiffer(tmp_path_factory):
 
 @pytest.mark.slow
 def test_the_stiffness_scale_of_a_stiffer_table_within_its_2_sigma(stiffer):
+    """Measured: 1.40 ± 0.20, 1.45 ± 0.19, 1.51 ± 0.21 (seeds 0, 1, 2); the module fixture
+    takes ~80 s (one compilation of the fit), so the test is marked slow."""
     _, _, fits = stiffer
     for fit in fits:
         assert fit.converged, fit.message
@@ -244,6 +246,7 @@ def test_the_stiffness_scale_of_a_stiffer_table_within_its_2_sigma(stiffer):
 
 @pytest.mark.slow
 def test_the_rails_bands_cover_the_truth(stiffer):
+    """Measured: 100 % of the grid within ±2σ over the three seeds."""
     mk, _, fits = stiffer
     inside = total = 0
     for fit in fits:
