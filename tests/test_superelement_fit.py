@@ -120,6 +120,11 @@ def test_bad_source_values(tmp_path):
         load_config(_machine_file(tmp_path, '[table]\nsource = "abaqus"\n'))
     with pytest.raises(ValueError, match=r"key 'table\.file': a file is only read with source"):
         load_config(_machine_file(tmp_path, '[table]\nfile = "plate.toml"\n', "f.toml"))
+    with pytest.raises(ValueError, match=r"key 'fit\.stiffness_prior': a stiffness scale is "
+                                         "estimated for a table imported"):
+        load_config(_machine_file(tmp_path, "[fit]\nstiffness_prior = [1, 0.5, 2]\n", "s.toml"))
+    cfg = load_config(_imported(tmp_path, extra="[fit]\nstiffness_prior = [1.2, 0.6, 3]\n"))
+    assert structure_priors(cfg).stiffness.value == 1.2
 
 
 def test_the_machine_of_either_source(plate_cfg):
@@ -134,6 +139,22 @@ def test_the_machine_of_either_source(plate_cfg):
     pts = retained_points(plate_cfg)
     assert set(pts) == {"P1", "P2", "P3", "P4", "P5"}
     assert pts["P1"] == pytest.approx((0.45, 0.2), abs=1e-9)
+
+
+def test_plan_and_montecarlo_on_the_imported_table(tmp_path):
+    """``plan`` and ``montecarlo`` run on the example machine file; the plan's candidate
+    sites default to the table's retained points (the only places it can be measured)."""
+    out = tmp_path / "plan"
+    assert main(["plan", "--config", str(MACHINE), "--positions", "8", "--out", str(out),
+                 "--quiet"]) == 0
+    rows = np.genfromtxt(out / "plan.csv", delimiter=",", names=True, dtype=None,
+                         encoding="utf-8")
+    pts = retained_points(load_config(MACHINE))
+    for r in np.atleast_1d(rows):
+        assert (r["x_mm"] * 1e-3, r["y_mm"] * 1e-3) == pytest.approx(pts[r["site"]], abs=1e-9)
+    assert main(["montecarlo", "--config", str(MACHINE), "--samples", "2", "--positions",
+                 "-350:350:4", "--out", str(tmp_path / "mc.json"), "--quiet"]) == 0
+    assert (tmp_path / "mc.json").stat().st_size > 0
 
 
 def test_table_command_refuses_an_imported_table(capsys):
@@ -281,3 +302,46 @@ def test_predict_on_the_imported_table(stiffer):
     assert np.all(pred.sigma[np.abs(x) > 0.1, 0, 3:5] > 0)
     with pytest.raises(ValueError, match="'Q' is not a retained node"):
         predict(fit, spec, {"Q": (0.1, 0.1)}, x, measured_points=mk.points(), make_machine=make)
+
+
+def _csv(meas) -> str:
+    """A long-format measurement file of merged angular rows (µm/m; the sensors' points)."""
+    from diffguide.io.measurements import QUANTITIES
+
+    lines = ["position_mm,point,x_mm,y_mm,quantity,value,unit,sigma"]
+    for i in range(meas.n):
+        p = int(meas.point[i])
+        x, y = meas.points_xy[p] * 1e3
+        lines.append(f"{meas.position[i] * 1e3:.6g},{meas.point_names[p]},{x:g},{y:g},"
+                     f"{QUANTITIES[int(meas.quantity[i])]},{meas.value[i] * 1e6:.6f},um/m,"
+                     f"{meas.sigma[i] * 1e6:.6f}")
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.slow
+def test_fit_and_predict_commands_on_the_imported_table(stiffer, tmp_path, capsys):
+    """``diffguide fit --config`` on the imported table (its default structure: preload and
+    stiffness scale) reports the scale in words on the console and in report.json, and
+    ``predict`` reads the fit back."""
+    import json
+
+    mk, _, _ = stiffer
+    cfg_path = _imported(tmp_path, FIT_EXAMPLE)
+    machine = config_machine(load_config(cfg_path), points=mk.points(),
+                             stiffness_scale=TRUE_SCALE)
+    x = np.arange(-350.0, 350.0 + 1e-9, 50.0) * 1e-3
+    meas = _measurements(mk, np.asarray(dg.joint_errors(machine, mk.truth_rails(), x).errors),
+                         x, np.random.default_rng(0))
+    csv_path = tmp_path / "m.csv"
+    csv_path.write_text(_csv(meas), encoding="utf-8")
+    out = tmp_path / "fit"
+    rc = main(["fit", "--config", str(cfg_path), "--measurements", str(csv_path),
+               "--out", str(out), "--no-plots"])
+    assert rc == 0
+    console = capsys.readouterr().out
+    assert "  table stiffness scale: " in console and "thickness" not in console
+    s = json.loads((out / "report.json").read_text())["elastic"]["structure"]["stiffness"]
+    assert s["label"] == "table stiffness scale" and s["prior_range"] == [0.5, 2.0]
+    assert abs(s["value"] - TRUE_SCALE) <= 2 * s["sigma"]
+    assert main(["predict", "--fit", str(out), "--point", "P1:450,200", "--out",
+                 str(tmp_path / "p.csv"), "--quiet"]) == 0

@@ -158,6 +158,10 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
             cfg[section][key] = _check(
                 value, schema()[section][key], f"{source}: key '{section}.{key}'"
             )
+    if table_source is None and cfg["fit"].get("stiffness_prior") is not None:
+        raise ValueError(f"{source}: key 'fit.stiffness_prior': a stiffness scale is estimated "
+                         'for a table imported from an FE model ([table] source = '
+                         '"superelement") only; the plate has a thickness (thickness_prior_mm)')
     _check_consistency(cfg, source)
     return cfg
 

@@ -217,7 +217,8 @@ FIT_SCHEMA: dict[str, tuple] = {
         "str:estimate|fixed",
         None,
         None,
-        "estimate the table thickness and the preload with the rails, or hold them fixed",
+        "estimate the table thickness (an imported table: its stiffness scale) and the preload "
+        "with the rails, or hold them fixed",
     ),
     "thickness_prior_mm": (
         None,
@@ -238,8 +239,8 @@ FIT_SCHEMA: dict[str, tuple] = {
         "prior",
         0.01,
         100.0,
-        "imported table ([table] source = \"superelement\"): prior of the scale on its "
-        "stiffness [value, lo, hi]; default [1, 0.5, 2]",
+        "stiffness scale prior [value, lo, hi] of an imported table (source = "
+        "\"superelement\"); its own stiffness is 1, the range [0.5, 2]",
     ),
     "criterion": (
         "ml",
