@@ -26,7 +26,7 @@ from .config_spec import default_config as default_config
 from .config_spec import schema as schema
 from .config_spec import spec_from_config as spec_from_config
 from .config_spec import table_from_config as table_from_config
-from .table_source import PLATE_ONLY, describe_source, resolve_table_source
+from .table_source import PLATE_ONLY, describe_source, resolve_table_source, retained_points
 
 
 def _number(value, where, what):
@@ -158,6 +158,10 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
             cfg[section][key] = _check(
                 value, schema()[section][key], f"{source}: key '{section}.{key}'"
             )
+    if table_source is not None and "points" not in raw:
+        # an imported table knows only its retained points: they are the machine's points
+        cfg["points"] = {name: tuple(round(v * 1e3, 9) for v in xy)
+                         for name, xy in retained_points(cfg).items()}
     if table_source is None and cfg["fit"].get("stiffness_prior") is not None:
         raise ValueError(f"{source}: key 'fit.stiffness_prior': a stiffness scale is estimated "
                          'for a table imported from an FE model ([table] source = '
@@ -307,7 +311,9 @@ def explain_config(path: str | os.PathLike) -> str:
         lines.append(f"[{section}]")
         lines += [f"{k} = {_toml_value(cfg[section][k])}  # {source(section, k)}" for k in keys]
         lines.append("")
-    lines.append(f"[points]  # {'file' if 'points' in raw else 'default'}")
+    points = ("file" if "points" in raw else
+              "the imported table's retained points" if unused else "default")
+    lines.append(f"[points]  # {points}")
     lines += [f"{n} = {_toml_value(xy)}" for n, xy in cfg["points"].items()]
     lines.append("")
     ribs = unused or ("file" if "ribs" in raw else "default")

@@ -11,7 +11,8 @@ model, a statically reduced (superelement) matrix.
 
 The description file (format, matrix, nodes, interfaces, points:
 :mod:`diffguide.io.superelement_file`, ``docs/superelement.md``) says which file holds the
-matrix and which retained node is which carriage, the nut and each control point. With
+matrix and which retained node is which carriage, the nut and each control point; without a
+``[points]`` section the machine's control points are the description's (at their nodes). With
 ``source = "superelement"`` the plate's keys — ``[table] thickness_mm``, ``E_GPa``, ``nu``,
 ``density_kg_m3``, ``mesh_nx``, ``mesh_ny``, ``[[ribs]]`` and ``[fit] thickness_prior_mm`` —
 have no meaning (the matrix is the table's stiffness and the file its weight): a file that gives
