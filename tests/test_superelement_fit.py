@@ -93,7 +93,7 @@ def test_the_description_file_is_relative_to_the_machine_file(tmp_path, plate_cf
 
 def test_the_control_points_default_to_the_retained_points(tmp_path, plate_cfg):
     """Without [points] the machine's points are the description's, at their nodes'
-    coordinates (plate_nodes.inp: P1 is node 24269 at (0.45, 0.2, 0.05) m); a [points]
+    coordinates (plate_nodes.inp: P1 is node 24269 at (0.45, 0.2, 0.025) m); a [points]
     section chooses among them."""
     assert list(plate_cfg["points"]) == ["P1", "P2", "P3", "P4", "P5"]
     assert plate_cfg["points"]["P1"] == pytest.approx((450.0, 200.0), abs=1e-9)
