@@ -22,7 +22,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "fit",
         help="identify rail straightness profiles (µm) from measured joint errors (CSV)",
         description="Fit the vertical and horizontal straightness profiles of both rails - and "
-        "the table's equivalent thickness and the preload, which nobody knows - to measured "
+        "the table's equivalent thickness (for a table imported from an FE model, a scale on "
+        "its stiffness) and the preload, which nobody knows - to measured "
         "joint kinematic errors (levels, interferometers) through the elastic machine model, by "
         "regularised Levenberg-Marquardt (marginal-likelihood weight), with posterior ±σ bands "
         "that include the structure's uncertainty and an identifiability report (with --rigid, "
