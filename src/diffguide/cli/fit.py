@@ -22,7 +22,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "fit",
         help="identify rail straightness profiles (µm) from measured joint errors (CSV)",
         description="Fit the vertical and horizontal straightness profiles of both rails - and "
-        "the table's equivalent thickness and the preload, which nobody knows - to measured "
+        "the table's equivalent thickness (for a table imported from an FE model, a scale on "
+        "its stiffness) and the preload, which nobody knows - to measured "
         "joint kinematic errors (levels, interferometers) through the elastic machine model, by "
         "regularised Levenberg-Marquardt (marginal-likelihood weight), with posterior ±σ bands "
         "that include the structure's uncertainty and an identifiability report (with --rigid, "
@@ -86,6 +87,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="prior of the preload (fraction of C), as for the thickness; default: the "
                    "config's [fit] preload_prior, else the machine's preload and [0.25, 2] "
                    "times it")
+    p.add_argument("--stiffness-prior", metavar="VALUE,LO,HI", default=None,
+                   help="a table imported from an FE model ([table] source = \"superelement\") "
+                   "has no thickness: the fit estimates a scale on its stiffness instead, with "
+                   "this prior (read as ±2σ of a log-normal prior); default: the config's [fit] "
+                   "stiffness_prior, else 1,0.5,2")
     p.add_argument("--rail-waviness-um", type=float, default=None, metavar="RMS",
                    help="RMS (µm) of the rails' short-wave content, shorter than about two knot "
                    "spacings, which the carriages average out and the data cannot show (state "
@@ -220,7 +226,8 @@ def structure_priors(args, cfg):
     from ..inverse.settings import structure_priors as priors
 
     return priors(cfg, structure=args.structure, thickness_prior_mm=args.thickness_prior_mm,
-                  preload_prior=args.preload_prior)
+                  preload_prior=args.preload_prior,
+                  stiffness_prior=getattr(args, "stiffness_prior", None))
 
 
 def _jsonable(obj):
@@ -293,7 +300,7 @@ def run(args) -> int:
     from ..inverse import MachineFamily
     from ..io.config import spec_from_config
     from ..io.fit_files import profile_grid
-    from ..machine.build import build_machine
+    from ..io.table_source import config_machine
     from ._common import machine_config
 
     t_start = time.perf_counter()
@@ -305,7 +312,7 @@ def run(args) -> int:
     points = {n: tuple(map(float, xy)) for n, xy in zip(meas.point_names, meas.points_xy)}
 
     def make_machine(**kw):
-        return build_machine(spec, nx=args.nx, ny=args.ny, points=points, **kw)
+        return config_machine(cfg, nx=args.nx, ny=args.ny, points=points, **kw)
 
     family = MachineFamily.build(make_machine, priors, progress=lambda t: say(args, t))
     fits, seconds = _fit_all(args, cfg, family, meas)
@@ -392,9 +399,11 @@ def _say_fit(args, label, f, meas, seconds) -> None:
                f"{seconds:.1f} s")
     for name, v in f.structure.items():
         val, sd = ((v["value"] * 1e3, v["sigma"] * 1e3) if name == "thickness"
+                   else (v["value"], v["sigma"]) if name == "stiffness"
                    else (v["value"] * 100, v["sigma"] * 100))
-        unit = "mm" if name == "thickness" else "% of C"
-        say(args, f"  {name}: {val:.3g} ± {sd:.2g} {unit}"
+        unit = {"thickness": " mm", "stiffness": ""}.get(name, " % of C")
+        label = "table stiffness scale" if name == "stiffness" else name
+        say(args, f"  {label}: {val:.3g} ± {sd:.2g}{unit}"
                    + ("" if v["determined"] else " (not determined by the data: prior)"))
     for c, a in zip(f.alignment_channels, f.alignment):
         say(args, f"  alignment slope of {meas.channel_label(c)}: {a * 1e6:.3g} µm/m "
@@ -503,6 +512,7 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
     ``--format`` (:func:`diffguide.studies.compensation.fitted_compensation`), written next
     to each other, and a warning per point where a rigid-body compensation would not hold."""
     from ..io.atomic import atomic_write_text
+    from ..io.table_source import machine_builder
     from ..studies.compensation import fitted_compensation
 
     points = {k: (v[0] * 1e-3, v[1] * 1e-3) for k, v in cfg["points"].items()}
@@ -512,7 +522,8 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
         spec, fit, np.linspace(-half, half, args.comp_points), args.at, _export_spec(args),
         points=points, nx=args.nx, ny=args.ny, x0_mm=x0_mm,
         source=f"predicted by the elastic model fitted to {', '.join(args.measurements)}",
-        tol_um=args.tol_um, tol_urad=args.tol_urad, z=args.at_z_mm * 1e-3)
+        tol_um=args.tol_um, tol_urad=args.tol_urad, z=args.at_z_mm * 1e-3,
+        make_machine=machine_builder(cfg, args.nx, args.ny))
     base = Path(args.export_compensation)
     for suffix, text in files.items():
         path = base if not suffix else base.with_name(base.stem + suffix)

@@ -171,8 +171,7 @@ def study_setup(args, rms: float, say):
     study from its command line (:func:`add_study_arguments`): ``(name, machine, positions,
     model, knots)``."""
     from ..inverse.fit import visited_range
-    from ..io.config import spec_from_config
-    from ..machine.build import build_machine
+    from ..io.table_source import config_machine
     from ..studies.random_rails import GaussianRailModel, default_knots
     from ._common import machine_config
 
@@ -189,8 +188,13 @@ def study_setup(args, rms: float, say):
     model = GaussianRailModel(rms, args.corr_mm * 1e-3, _KERNELS[args.kernel],
                               _PLANES[args.planes])
     name = args.config or args.preset
-    say(f"building the {name} machine (table mesh {nx}x{ny}) ...")
-    machine = build_machine(spec_from_config(cfg), nx=nx, ny=ny)
+    if cfg.get("table_source"):  # imported from an FE model: no mesh (--mesh not used)
+        nx = ny = None
+        say(f"building the {name} machine (table imported from "
+            f"{cfg['table_source']['given']}) ...")
+    else:
+        say(f"building the {name} machine (table mesh {nx}x{ny}) ...")
+    machine = config_machine(cfg, nx=nx, ny=ny)
     # the rails must cover what the elements visit: the default ±0.6 m knots (majda2012) or,
     # for a longer machine, the visited range with a margin
     lo, hi = visited_range(machine, positions)

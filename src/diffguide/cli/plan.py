@@ -200,6 +200,10 @@ def _sites(args, cfg) -> dict:
 
     if args.sites:
         return read_sites(args.sites, _table_mm(cfg))
+    if cfg.get("table_source"):  # an imported table knows only its retained points
+        from ..io.table_source import retained_points
+
+        return retained_points(cfg)
     try:
         nx, ny = parse_mesh_text(args.grid)
     except ValueError:
@@ -299,7 +303,7 @@ def _family(args, cfg, spec, sites, n_candidates, instruments):
     """The machine family over ``sites`` (structure unknown as ``diffguide fit`` has it, or as
     the options say) and its priors, after a line saying what is planned."""
     from ..inverse import MachineFamily
-    from ..machine.build import build_machine
+    from ..io.table_source import config_machine
     from .fit import structure_priors
 
     priors = structure_priors(
@@ -308,12 +312,13 @@ def _family(args, cfg, spec, sites, n_candidates, instruments):
             criterion=None,
             thickness_prior_mm=args.thickness_prior_mm,
             preload_prior=args.preload_prior,
+            stiffness_prior=getattr(args, "stiffness_prior", None),
         ),
         cfg,
     )
 
     def make_machine(**kw):
-        return build_machine(spec, nx=args.nx, ny=args.ny, points=sites, **kw)
+        return config_machine(cfg, nx=args.nx, ny=args.ny, points=sites, **kw)
 
     kinds = ", ".join(
         f"{i.count} {i.kind}(s) reading {'+'.join(i.quantities)}" for i in instruments if i.count

@@ -85,13 +85,15 @@ def _positions(args, post) -> np.ndarray:
 
 
 def _machine_spec(meta: dict):
-    """The fitted machine's specification: the fit's machine file or preset."""
+    """The fitted machine's specification and its builder for ``predict`` (``None`` for the
+    plate; :func:`diffguide.io.table_source.machine_builder`): the fit's machine file or
+    preset."""
     from ..io.config import default_config, load_config, spec_from_config
+    from ..io.table_source import machine_builder
 
     m = meta["machine"]
-    if m.get("config"):
-        return spec_from_config(load_config(m["config"]))
-    return spec_from_config(default_config())
+    cfg = load_config(m["config"]) if m.get("config") else default_config()
+    return spec_from_config(cfg), machine_builder(cfg, m.get("nx"), m.get("ny"))
 
 
 def run(args) -> int:
@@ -106,10 +108,11 @@ def run(args) -> int:
     post, meta = read_fit_posterior(args.fit)
     points = _points(args)
     x = _positions(args, post)
-    spec = _machine_spec(meta)
+    spec, make_machine = _machine_spec(meta)
     m = meta["machine"]
     pred = predict(post, spec, points, x, measured_points=meta["points_m"], nx=m.get("nx"),
-                   ny=m.get("ny"), extrapolate=args.extrapolate, z=args.z_mm * 1e-3)
+                   ny=m.get("ny"), extrapolate=args.extrapolate, z=args.z_mm * 1e-3,
+                   make_machine=make_machine)
     src = f"from the fit in {Path(args.fit).resolve()}"
     atomic_write_text(args.out, prediction_csv_text(pred, src, meta.get("x0_mm")))
     _summary(args, pred, time.perf_counter() - t0)

@@ -263,10 +263,9 @@ def run(args) -> int:
     import sys
 
     from ..io.atomic import atomic_write_text  # here: --help imports no JAX
-    from ..io.config import spec_from_config
     from ..io.errors_csv import joint_errors_csv
     from ..io.rails_csv import read_rails_csv
-    from ..machine.build import build_machine
+    from ..io.table_source import config_machine
     from ..machine.majda2012 import paper_variant
 
     cfg = machine_config(args)
@@ -279,7 +278,7 @@ def run(args) -> int:
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     name = args.config or args.preset
     say(f"building the {name} machine ...")
-    machine = build_machine(spec_from_config(cfg), nx=nx, ny=ny)
+    machine = config_machine(cfg, nx=nx, ny=ny)
     if args.rigid_table:
         machine = machine.with_rigid_table()
     say(f"solving the equilibrium at {len(positions)} positions ...")

@@ -36,8 +36,14 @@ def run(args) -> int:
 
     from ..io.atomic import atomic_write_text
     from ..machine.build import table_from_spec, with_overrides
+    from ._common import machine_config
 
     say = (lambda *a: None) if args.quiet else print
+    src = machine_config(args).get("table_source")
+    if src:
+        raise ValueError(f"{args.config}: the table is imported from {src['given']} (source = "
+                         '"superelement"): the table command solves diffguide\'s plate, which '
+                         "this machine does not use")
     spec = with_overrides(machine_spec(args), nx=args.nx, ny=args.ny)
     model = table_from_spec(spec, nut=False)
     cond = model.condense()

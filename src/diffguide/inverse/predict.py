@@ -21,9 +21,9 @@ slope of both rails in each plane, which no reading determines, fixed as in the 
 
 ``J`` in ``c`` and in the preload: one forward-mode pass through the implicit equilibria (the
 preload scales ``Carriage.preload_force``, as in :class:`.structure.MachineFamily`). ``J`` in
-the thickness: a secant over ``±h`` (``h`` its posterior σ within
-:data:`~.posterior.SECANT_STEP_LIMITS`, as the fit's own structure sensitivity), the table
-condensed at ``t̂·e^{±hσ_t}``.
+the thickness (or an imported table's stiffness scale): a secant over ``±h`` (``h`` its
+posterior σ within :data:`~.posterior.SECANT_STEP_LIMITS`, as the fit's own structure
+sensitivity), the table condensed at ``t̂·e^{±hσ_t}`` (scaled by ``ŝ·e^{±hσ_s}``).
 
 **The machine.** The fit's machine family interpolates the condensed table's point-recovery rows
 between thickness nodes only for the measured points (its node modes stay at the prior
@@ -201,21 +201,30 @@ def _check_points(points, spec) -> dict:
 _MACHINES: dict = {}
 
 
-def _machine(spec, points: dict, nx, ny, structure: dict, log_t_shift: float = 0.0):
-    """The machine of ``spec`` at the fitted structure (the thickness times ``e^shift``) with
-    ``points`` (m); kept in :data:`_MACHINES` (the last :data:`MACHINE_CACHE_SIZE`)."""
+def _machine(spec, points: dict, nx, ny, structure: dict, log_shift: float = 0.0,
+             make_machine=None):
+    """The machine of ``spec`` at the fitted structure (the thickness, or an imported table's
+    stiffness scale, times ``e^shift``) with ``points`` (m), built by ``make_machine(points,
+    **kw)`` (default :func:`~diffguide.machine.build.build_machine` of ``spec`` on the mesh
+    ``nx``, ``ny``); kept in :data:`_MACHINES` (the last :data:`MACHINE_CACHE_SIZE`)."""
     kw = {}
     if "thickness" in structure:
-        kw["thickness"] = structure["thickness"]["value"] * float(np.exp(log_t_shift))
+        kw["thickness"] = structure["thickness"]["value"] * float(np.exp(log_shift))
+    if "stiffness" in structure:
+        kw["stiffness_scale"] = structure["stiffness"]["value"] * float(np.exp(log_shift))
     if "preload" in structure:
         kw["preload_fraction"] = structure["preload"]["value"]
-    key = (id(spec), nx, ny, tuple((k, *v) for k, v in points.items()),
+    key = (id(spec), id(make_machine), nx, ny, tuple((k, *v) for k, v in points.items()),
            tuple(sorted(kw.items())))
     if key not in _MACHINES:
         while len(_MACHINES) >= MACHINE_CACHE_SIZE:
             _MACHINES.pop(next(iter(_MACHINES)))
-        _MACHINES[key] = (spec, build_machine(spec, nx=nx, ny=ny, points=points, **kw))
-    return _MACHINES[key][1]
+        if make_machine is None:
+            m = build_machine(spec, nx=nx, ny=ny, points=points, **kw)
+        else:
+            m = make_machine(points, **kw)
+        _MACHINES[key] = (spec, make_machine, m)
+    return _MACHINES[key][-1]
 
 
 def _errors_traced(c, dq_p, machine, positions, x_ref, start, spacing, n, sigma_p):
@@ -263,7 +272,7 @@ def _sweep(post: FitPosterior, machine, x, with_jacobian: bool):
 
 def predict(fit, spec, points, positions, *, measured_points: dict | None = None,
             nx: int | None = None, ny: int | None = None,
-            extrapolate: bool = False, z: float = 0.0) -> Prediction:
+            extrapolate: bool = False, z: float = 0.0, make_machine=None) -> Prediction:
     """The six joint errors and their σ at ``points`` over ``positions`` (module docstring).
 
     Arguments:
@@ -278,6 +287,11 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
         z: the height (m) of the predicted points above the table top — the tool point or a
             workpiece feature — within :data:`Z_RANGE`: the table is rigid above its top, so
             EXX gains ``z·EBX`` and EYX ``−z·EAX`` (Abbe), in the errors and their σ.
+        make_machine: ``make_machine(points, **kw)`` → the fitted machine with ``points``
+            ``{name: (x, y)}`` (m) and the structure ``kw`` (``thickness``, ``preload_fraction``,
+            ``stiffness_scale``); needed for a table imported from an FE model
+            (:func:`diffguide.io.table_source.config_machine`), whose points must be retained
+            nodes. Default: :func:`~diffguide.machine.build.build_machine` of ``spec``.
 
     Returns a :class:`Prediction`. ``ValueError`` for points off the table, positions as
     above or beyond the stroke, a name given twice with two locations, or an equilibrium that
@@ -298,7 +312,7 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
             raise ValueError(f"point {k!r} is a measured point at ({allp[k][0] * 1e3:g}, "
                              f"{allp[k][1] * 1e3:g}) mm: give the new point another name")
         allp[k] = v
-    machine = _machine(spec, allp, nx, ny, post.structure)
+    machine = _machine(spec, allp, nx, ny, post.structure, 0.0, make_machine)
     sel = [list(allp).index(k) for k in pts]
     z = _check_z(z)
     e, Jm, ok = _sweep(post, machine, x, True)
@@ -311,9 +325,11 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
     J[..., :n_c] = Jm[..., :n_c]
     if "preload" in names:
         J[..., n_c + names.index("preload")] = Jm[..., n_c]
-    if "thickness" in names and not post.rigid:
-        i = names.index("thickness")
-        J[..., n_c + i] = _thickness_column(post, spec, allp, nx, ny, x, i)
+    for name in ("thickness", "stiffness"):
+        if name in names and not post.rigid:
+            i = names.index(name)
+            J[..., n_c + i] = _secant_column(post, spec, allp, nx, ny, x, i, name,
+                                             make_machine)
     if len(post.lead):
         lo = n_c + len(names)
         ls, lh, ln = post.lead_basis
@@ -353,18 +369,20 @@ def abbe(a: np.ndarray, z: float) -> np.ndarray:
     return out
 
 
-def _thickness_column(post: FitPosterior, spec, allp, nx, ny, x, i) -> np.ndarray:
-    """``∂e/∂q_t`` (per prior σ of ln t): a secant over ``±h`` prior σ (module docstring)."""
-    s = post.structure["thickness"]["prior_sigma_log"]
+def _secant_column(post: FitPosterior, spec, allp, nx, ny, x, i, name,
+                   make_machine=None) -> np.ndarray:
+    """``∂e/∂q`` of the thickness or the stiffness scale (per prior σ of its log): a secant
+    over ``±h`` prior σ (module docstring)."""
+    s = post.structure[name]["prior_sigma_log"]
     nq = len(post.structure)
     cov_q = post.cov[4 * post.n_coeffs:4 * post.n_coeffs + nq, 4 * post.n_coeffs + i]
     h = float(np.clip(np.sqrt(max(cov_q[i], 0.0)), *SECANT_STEP_LIMITS))
     out = []
     for sign in (-1.0, 1.0):
-        m = _machine(spec, allp, nx, ny, post.structure, sign * h * s)
+        m = _machine(spec, allp, nx, ny, post.structure, sign * h * s, make_machine)
         e, _, ok = _sweep(post, m, x, False)
         if not ok:
-            raise ValueError("the fitted model's equilibrium did not converge at the thickness "
+            raise ValueError(f"the fitted model's equilibrium did not converge at the {name} "
                              "± its σ; no prediction")
         out.append(e)
     return (out[1] - out[0]) / (2 * h)

@@ -41,6 +41,9 @@ KNOT_SPACING_RANGE = (1e-3, 5.0)
 #: Plausible range of a preload prior (fraction of the carriage's dynamic capacity C), the
 #: machine file's ``[carriage] preload_fraction`` range.
 PRELOAD_RANGE = (1e-4, 0.5)
+#: Plausible range of an imported table's stiffness-scale prior (the machine file's ``[fit]
+#: stiffness_prior`` range).
+STIFFNESS_RANGE = (0.01, 100.0)
 _EXX = QUANTITIES.index("EXX")
 _STRAIGHTNESS = (QUANTITIES.index("EYX"), QUANTITIES.index("EZX"))
 #: What a failed equilibrium raises inside the compiled model (equinox's runtime checks under
@@ -237,7 +240,8 @@ def _check_priors(family: MachineFamily) -> None:
     if priors is None:
         return
     for name, (lo, hi), unit in (("thickness", THICKNESS_RANGE, "m"),
-                                 ("preload", PRELOAD_RANGE, "of C")):
+                                 ("preload", PRELOAD_RANGE, "of C"),
+                                 ("stiffness", STIFFNESS_RANGE, "(a scale)")):
         prior = getattr(priors, name, None)
         if prior is None:
             continue
@@ -246,7 +250,7 @@ def _check_priors(family: MachineFamily) -> None:
                 length(f"the thickness prior's {part}", getattr(prior, part), lo, hi)
         elif not (lo <= prior.lo and prior.hi <= hi):
             raise ValueError(
-                f"the preload prior's range ({prior.lo:g}, {prior.hi:g}) must lie within "
+                f"the {name} prior's range ({prior.lo:g}, {prior.hi:g}) must lie within "
                 f"[{lo:g}, {hi:g}] {unit}"
             )
 

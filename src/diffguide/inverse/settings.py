@@ -10,6 +10,9 @@ from .structure import Prior, StructurePriors
 #: The default prior ranges, as factors of the machine's own value: (low, high).
 THICKNESS_RANGE = (0.5, 2.0)
 PRELOAD_RANGE = (0.25, 2.0)
+#: The default prior of an imported table's stiffness scale ``[value, lo, hi]``: the FE model's
+#: stiffness, within a factor 2 either way at ±2σ (σ of ``ln s`` = ln 2 / 2 ≈ 0.35).
+STIFFNESS_PRIOR = (1.0, 0.5, 2.0)
 
 
 def parse_prior(text: str, flag: str, scale: float) -> list[float]:
@@ -54,28 +57,49 @@ def rigid_wanted(cfg: dict, rigid: bool | None = None) -> bool:
 
 def structure_priors(cfg: dict, *, structure: str | None = None,
                      thickness_prior_mm: str | None = None,
-                     preload_prior: str | None = None) -> StructurePriors:
+                     preload_prior: str | None = None,
+                     stiffness_prior: str | None = None) -> StructurePriors:
     """The structural priors (:class:`.structure.StructurePriors`, thickness in m, preload as a
-    fraction of C): none when the structure is ``"fixed"`` (:func:`fit_modes`); else the
-    ``VALUE,LO,HI`` texts (thickness in mm, ``--thickness-prior-mm``/``--preload-prior``),
-    else the configuration's ``[fit] thickness_prior_mm``/``preload_prior``, else the
+    fraction of C, stiffness as a scale): none when the structure is ``"fixed"``
+    (:func:`fit_modes`); else the ``VALUE,LO,HI`` texts (thickness in mm,
+    ``--thickness-prior-mm``/``--preload-prior``/``--stiffness-prior``), else the
+    configuration's ``[fit] thickness_prior_mm``/``preload_prior``/``stiffness_prior``, else the
     machine's own values (``[table] thickness_mm``, ``[carriage] preload_fraction``) with the
-    ranges :data:`THICKNESS_RANGE` and :data:`PRELOAD_RANGE` times them."""
+    ranges :data:`THICKNESS_RANGE` and :data:`PRELOAD_RANGE` times them. A table imported from
+    an FE model (``[table] source = "superelement"``) has no thickness: its structural unknown
+    is the scale on its stiffness, prior :data:`STIFFNESS_PRIOR` by default."""
     if fit_modes(cfg, structure)[0] == "fixed":
         return StructurePriors()
     fit = cfg.get("fit", {})
-    t0 = cfg["table"]["thickness_mm"] * 1e-3
+    imported = cfg.get("table_source") is not None
     p0 = cfg["carriage"]["preload_fraction"]
-    if thickness_prior_mm:
-        t = parse_prior(thickness_prior_mm, "--thickness-prior-mm", 1e-3)
-    elif fit.get("thickness_prior_mm") is not None:
-        t = [v * 1e-3 for v in fit["thickness_prior_mm"]]
-    else:
-        t = (t0, THICKNESS_RANGE[0] * t0, THICKNESS_RANGE[1] * t0)
     if preload_prior:
         p = parse_prior(preload_prior, "--preload-prior", 1.0)
     elif fit.get("preload_prior") is not None:
         p = list(fit["preload_prior"])
     else:
         p = (p0, PRELOAD_RANGE[0] * p0, PRELOAD_RANGE[1] * p0)
+    if imported:
+        if thickness_prior_mm:
+            raise ValueError("--thickness-prior-mm: the table is imported from an FE model "
+                             '(source = "superelement") and has no thickness; give '
+                             "--stiffness-prior VALUE,LO,HI (a scale on its stiffness)")
+        if stiffness_prior:
+            k = parse_prior(stiffness_prior, "--stiffness-prior", 1.0)
+        elif fit.get("stiffness_prior") is not None:
+            k = list(fit["stiffness_prior"])
+        else:
+            k = STIFFNESS_PRIOR
+        return StructurePriors(None, Prior(*p), Prior(*k))
+    if stiffness_prior:
+        raise ValueError("--stiffness-prior applies to a table imported from an FE model "
+                         '([table] source = "superelement"); the plate has a thickness '
+                         "(--thickness-prior-mm)")
+    t0 = cfg["table"]["thickness_mm"] * 1e-3
+    if thickness_prior_mm:
+        t = parse_prior(thickness_prior_mm, "--thickness-prior-mm", 1e-3)
+    elif fit.get("thickness_prior_mm") is not None:
+        t = [v * 1e-3 for v in fit["thickness_prior_mm"]]
+    else:
+        t = (t0, THICKNESS_RANGE[0] * t0, THICKNESS_RANGE[1] * t0)
     return StructurePriors(Prior(*t), Prior(*p))

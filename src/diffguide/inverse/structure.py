@@ -5,12 +5,17 @@ worn carriage, and both change what a rail error does to the measured pitch, yaw
 fit therefore estimates them together with the rails, through the same model, with a prior the
 user states (a value and a range).
 
-Two structural unknowns, both dimensionless and on a log scale:
+Three structural unknowns, all dimensionless and on a log scale:
 
 - ``log_thickness`` ``= ln(t / t₀)``: the equivalent plate thickness ``t`` of the table (bending
   stiffness ∝ t³, membrane and shear stiffness and weight ∝ t);
 - ``log_preload`` ``= ln(F / F₀)``: the preload force per rolling element ``F`` (a preload
-  fraction of C times the same factor).
+  fraction of C times the same factor);
+- ``log_stiffness`` ``= ln(s / s₀)``: a scale ``s`` on the stiffness of a table imported from the
+  user's FE model (:mod:`diffguide.fe.superelement`), which has no thickness: ``K → sK``, the
+  sag under the self-weight ``r0 → r0/s``, the weight and the point recovery unchanged — exact
+  (:func:`~diffguide.fe.superelement.scaled_table`), so no interpolation is needed. It stands
+  for what the FE model gets wrong as a whole (the casting's modulus, the joints' compliance).
 
 The preload enters the carriage directly (``Carriage.preload_force`` is a number of the model).
 The table is condensed once per thickness at :data:`N_NODES` Chebyshev nodes of ``ln t`` over
@@ -40,6 +45,8 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..fe.superelement import scaled_table
+
 #: Interpolation nodes in ln(thickness).
 N_NODES = 9
 #: The nodes span the prior range widened by this factor on each side (in t).
@@ -49,7 +56,7 @@ MARGIN = 1.15
 DETERMINED_RATIO = 0.7
 
 _log = logging.getLogger("diffguide")
-NAMES = ("thickness", "preload")
+NAMES = ("thickness", "preload", "stiffness")
 #: Fields of the condensed table interpolated in thickness.
 INTERPOLATED = ("K", "f", "R", "r0")
 
@@ -86,10 +93,14 @@ class StructurePriors:
         preload: preload as a fraction of the carriage's dynamic capacity C (or of the machine's
             own preload when the machine was given directly: ``value`` is then the machine's
             fraction and only the ratios matter).
+        stiffness: the scale on an imported table's stiffness (dimensionless; 1: the FE
+            model's). Only for a machine whose table was condensed elsewhere (its thickness
+            has no meaning); the family scales the base machine's table itself.
     """
 
     thickness: Prior | None = None
     preload: Prior | None = None
+    stiffness: Prior | None = None
 
     def active(self) -> tuple[str, ...]:
         return tuple(n for n in NAMES if getattr(self, n) is not None)
@@ -123,6 +134,8 @@ class MachineFamily(eqx.Module):
         nodes: the nodes ``ln t`` (static).
         thickness0: the base machine's thickness (m). preload0: its preload fraction.
         priors: the priors (static).
+        stiffness0: the base machine's stiffness scale (its table is the given machine's
+            scaled by it).
     """
 
     base: eqx.Module
@@ -131,6 +144,7 @@ class MachineFamily(eqx.Module):
     thickness0: float = eqx.field(static=True)
     preload0: float = eqx.field(static=True)
     priors: StructurePriors = eqx.field(static=True)
+    stiffness0: float = eqx.field(static=True, default=1.0)
 
     @classmethod
     def build(
@@ -156,8 +170,13 @@ class MachineFamily(eqx.Module):
             kw["preload_fraction"] = priors.preload.value
         base = make_machine(**kw, **({} if t0 is None else {"thickness": t0}))
         preload0 = priors.preload.value if priors.preload is not None else 1.0
+        s0 = 1.0
+        if priors.stiffness is not None:
+            s0 = float(priors.stiffness.value)
+            if s0 != 1.0:
+                base = eqx.tree_at(lambda m: m.table, base, scaled_table(base.table, s0))
         if priors.thickness is None:
-            return cls(base, None, (), 0.0, preload0, priors)
+            return cls(base, None, (), 0.0, preload0, priors, s0)
         p = priors.thickness
         lo, hi = np.log(p.lo / MARGIN), np.log(p.hi * MARGIN)
         nodes = _cheb_nodes(lo, hi, N_NODES)
@@ -174,7 +193,8 @@ class MachineFamily(eqx.Module):
             k: jnp.asarray(np.stack([np.asarray(getattr(t, k)) for t in tables]))
             for k in INTERPOLATED
         }
-        return cls(base, stacked, tuple(float(u) for u in nodes), float(t0), preload0, priors)
+        return cls(base, stacked, tuple(float(u) for u in nodes), float(t0), preload0, priors,
+                   s0)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -192,7 +212,8 @@ class MachineFamily(eqx.Module):
         return np.zeros(self.n_params)
 
     def bounds(self) -> np.ndarray:
-        """``(n_params, 2)`` bounds of the unknowns (the thickness nodes' range; preload ±3)."""
+        """``(n_params, 2)`` bounds of the unknowns (the thickness nodes' range; preload and
+        stiffness ±3, a factor 20)."""
         out = []
         for n in self.names:
             if n == "thickness":
@@ -213,6 +234,9 @@ class MachineFamily(eqx.Module):
                 fields = [jnp.tensordot(w, self.tables[k], axes=1) for k in INTERPOLATED]
                 m = eqx.tree_at(lambda mm: [getattr(mm.table, k) for k in INTERPOLATED], m,
                                 fields)
+            elif n == "stiffness":
+                m = eqx.tree_at(lambda mm: mm.table, m,
+                                scaled_table(m.table, jnp.exp(params[i])))
             else:
                 f0 = m.carriage.preload_force
                 m = eqx.tree_at(lambda mm: mm.carriage.preload_force, m,
@@ -220,11 +244,14 @@ class MachineFamily(eqx.Module):
         return m
 
     def values(self, params) -> dict[str, float]:
-        """The physical value of each unknown (thickness in m, preload as a fraction)."""
+        """The physical value of each unknown (thickness in m, preload as a fraction, stiffness
+        as a scale)."""
         out = {}
         for i, n in enumerate(self.names):
             if n == "thickness":
                 out[n] = float(self.thickness0 * np.exp(params[i]))
+            elif n == "stiffness":
+                out[n] = float(self.stiffness0 * np.exp(params[i]))
             else:
                 out[n] = float(self.preload0 * np.exp(params[i]))
         return out

@@ -21,3 +21,4 @@ from .superelement import reduced_from_reactions as reduced_from_reactions
 from .superelement_file import ImportedTable as ImportedTable
 from .superelement_file import imported_machine as imported_machine
 from .superelement_file import load_imported_table as load_imported_table
+from .table_source import config_machine as config_machine

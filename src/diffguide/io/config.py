@@ -26,6 +26,7 @@ from .config_spec import default_config as default_config
 from .config_spec import schema as schema
 from .config_spec import spec_from_config as spec_from_config
 from .config_spec import table_from_config as table_from_config
+from .table_source import PLATE_ONLY, describe_source, resolve_table_source, retained_points
 
 
 def _number(value, where, what):
@@ -94,9 +95,13 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
         raise ValueError(f"{source}: the configuration must be a table of sections")
     # [carriage] block = ... / datasheet values -> the internal keys (io/carriage_block.py)
     raw, catalogue = resolve_catalogue(raw, source, _check, schema()["carriage"])
+    # [table] source = "superelement", file = ...: the user's FE model (io/table_source.py)
+    raw, table_source = resolve_table_source(raw, source)
     cfg = default_config()
     if catalogue is not None:
         cfg["catalogue"] = catalogue
+    if table_source is not None:
+        cfg["table_source"] = table_source
     for section, body in raw.items():
         where = f"{source}: [{section}]"
         if section == "ribs":
@@ -153,6 +158,14 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
             cfg[section][key] = _check(
                 value, schema()[section][key], f"{source}: key '{section}.{key}'"
             )
+    if table_source is not None and "points" not in raw:
+        # an imported table knows only its retained points: they are the machine's points
+        cfg["points"] = {name: tuple(round(v * 1e3, 9) for v in xy)
+                         for name, xy in retained_points(cfg).items()}
+    if table_source is None and cfg["fit"].get("stiffness_prior") is not None:
+        raise ValueError(f"{source}: key 'fit.stiffness_prior': a stiffness scale is estimated "
+                         'for a table imported from an FE model ([table] source = '
+                         '"superelement") only; the plate has a thickness (thickness_prior_mm)')
     _check_consistency(cfg, source)
     return cfg
 
@@ -283,7 +296,12 @@ def explain_config(path: str | os.PathLike) -> str:
         lines.append(f"# carriage: {cfg['catalogue']['block']}, preload class "
                      f"{cfg['catalogue']['preload_class']}")
 
+    lines += describe_source(cfg)
+    unused = "not used: the table is imported" if cfg.get("table_source") else None
+
     def source(section, key):
+        if unused and f"{section}.{key}" in PLATE_ONLY:
+            return unused
         if key in raw.get(section, {}):
             return "file"
         where = prov.get(key if section == "carriage" else f"{section}.{key}")
@@ -293,15 +311,20 @@ def explain_config(path: str | os.PathLike) -> str:
         lines.append(f"[{section}]")
         lines += [f"{k} = {_toml_value(cfg[section][k])}  # {source(section, k)}" for k in keys]
         lines.append("")
-    lines.append(f"[points]  # {'file' if 'points' in raw else 'default'}")
+    points = ("file" if "points" in raw else
+              "the imported table's retained points" if unused else "default")
+    lines.append(f"[points]  # {points}")
     lines += [f"{n} = {_toml_value(xy)}" for n, xy in cfg["points"].items()]
     lines.append("")
-    lines.append(f"# ribs: {len(cfg['ribs'])} ({'file' if 'ribs' in raw else 'default'})")
+    ribs = unused or ("file" if "ribs" in raw else "default")
+    lines.append(f"# ribs: {len(cfg['ribs'])} ({ribs})")
     fit = cfg.get("fit", {})
     lines.append("[fit]")
     for k, spec in FIT_SCHEMA.items():
         v = fit.get(k, spec[0])
         src = "file" if k in raw.get("fit", {}) else "default"
+        if unused and f"fit.{k}" in PLATE_ONLY:
+            src = unused
         lines.append(f"# {k}: the machine's value  # {src}" if v is None
                      else f"{k} = {_toml_value(v)}  # {src}")
     return "\n".join(lines) + "\n"

@@ -209,14 +209,16 @@ _RIB_DEFAULTS = {"axis": "x", "position_mm": 0.0, "width_mm": 20.0, "depth_mm": 
 #: part of the machine (no spec path); ``{key: (default, kind, low, high, help)}`` as
 #: :func:`schema`. A ``"prior"`` is ``[value, lo, hi]`` with ``0 < lo <= value <= hi``, read as
 #: a value and ±2σ of a log-normal prior; ``None`` (the default) means the machine's own value
-#: with the range ``[value/2, 2·value]`` (thickness) or ``[value/4, 2·value]`` (preload).
+#: with the range ``[value/2, 2·value]`` (thickness) or ``[value/4, 2·value]`` (preload); the
+#: stiffness scale of an imported table defaults to ``[1, 0.5, 2]``.
 FIT_SCHEMA: dict[str, tuple] = {
     "structure": (
         "estimate",
         "str:estimate|fixed",
         None,
         None,
-        "estimate the table thickness and the preload with the rails, or hold them fixed",
+        "estimate the table thickness (an imported table: its stiffness scale) and the preload "
+        "with the rails, or hold them fixed",
     ),
     "thickness_prior_mm": (
         None,
@@ -231,6 +233,14 @@ FIT_SCHEMA: dict[str, tuple] = {
         1e-5,
         0.9,
         "preload prior [value, lo, hi] as fractions of C",
+    ),
+    "stiffness_prior": (
+        None,
+        "prior",
+        0.01,
+        100.0,
+        "stiffness scale prior [value, lo, hi] of an imported table (source = "
+        "\"superelement\"); its own stiffness is 1, the range [0.5, 2]",
     ),
     "criterion": (
         "ml",

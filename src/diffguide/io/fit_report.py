@@ -115,12 +115,22 @@ def _channel_rows(fit, meas) -> list[dict]:
     return channels
 
 
+#: Each structural unknown's unit in the report and the factor from SI to it.
+STRUCTURE_UNITS = {"thickness": ("mm", 1e3), "preload": ("fraction of C", 1.0),
+                   "stiffness": ("", 1.0)}
+#: Each structural unknown in words (the console, report.json, report.html).
+STRUCTURE_LABELS = {"thickness": "table equivalent thickness", "preload": "preload",
+                    "stiffness": "table stiffness scale"}
+
+
 def _structure_rows(fit) -> dict:
-    """Per structural unknown, in mm (thickness) or as a fraction of C (preload)."""
+    """Per structural unknown, in mm (thickness), as a fraction of C (preload) or as a scale
+    on an imported table's stiffness (stiffness), with its label in words."""
     structure = {}
     for name, v in fit.structure.items():
-        unit, f = ("mm", 1e3) if name == "thickness" else ("fraction of C", 1.0)
+        unit, f = STRUCTURE_UNITS.get(name, ("fraction of C", 1.0))
         structure[name] = {
+            "label": STRUCTURE_LABELS.get(name, name),
             "unit": unit, "value": v["value"] * f, "sigma": v["sigma"] * f,
             "prior_value": v["prior_value"] * f,
             "prior_range": [x * f for x in v["prior_range"]],

@@ -116,7 +116,8 @@ def _determined_section(report: dict) -> str:
     lam = [r["wavelength_mm"] for c in ident["wavelengths"] for r in c["transfer"]]
     span = f"{min(lam):.0f}–{max(lam):.0f} mm" if lam else "—"
     for name, s in el["structure"].items():
-        items.append(f"<li>{_e(name)}: {s['value']:.4g} ± {s['sigma']:.2g} {_e(s['unit'])} — "
+        items.append(f"<li>{_e(s.get('label', name))}: {s['value']:.4g} ± {s['sigma']:.2g} "
+                     f"{_e(s['unit'])} — "
                      f"{_e(s['note'])}</li>")
     if el["resolution"]["rail_waviness_um"] > 0:
         items.append(f"<li>{_e(el['resolution']['note'])}</li>")

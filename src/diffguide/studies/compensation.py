@@ -96,7 +96,8 @@ def location_warnings(
 def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
                         nx: int | None = None, ny: int | None = None, x0_mm: float = 0.0,
                         source: str = "", tol_um: float = 2.0,
-                        tol_urad: float = 5.0, z: float = 0.0) -> tuple[dict[str, str], list[str]]:
+                        tol_urad: float = 5.0, z: float = 0.0,
+                        make_machine=None) -> tuple[dict[str, str], list[str]]:
     """A compensation export of the errors a fitted model predicts at point ``at``, with σ.
 
     Arguments:
@@ -110,7 +111,8 @@ def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
             nx, ny: the fit's mesh. x0_mm: the machine coordinate (mm) of x = 0. source: a
             line for the header. tol_um, tol_urad: the tolerances of
             :func:`location_warnings` (µm, µrad). z: the tool point's height above the table
-            top (m; :func:`~diffguide.inverse.predict.predict`'s Abbe terms).
+            top (m; :func:`~diffguide.inverse.predict.predict`'s Abbe terms). make_machine:
+            the fitted machine's builder, for an imported table (``predict``'s).
 
     Returns ``({suffix: text}, warnings)``: :func:`~.exports.export_compensation`'s files —
     the errors and σ of :func:`diffguide.inverse.predict.predict`, the prediction with σ from
@@ -124,7 +126,8 @@ def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
     x_mm = np.asarray(x_mm, float)
     if at not in points:
         raise ValueError(f"--at must be one of the points {', '.join(points)}, got {at!r}")
-    pred = predict(fit, spec, points, x_mm * 1e-3, nx=nx, ny=ny, extrapolate=True, z=z)
+    pred = predict(fit, spec, points, x_mm * 1e-3, nx=nx, ny=ny, extrapolate=True, z=z,
+                   make_machine=make_machine)
     if z:
         source = f"{source}; at {z * 1e3:g} mm above the table top".lstrip("; ")
     j = list(pred.point_names).index(at)
