@@ -18,6 +18,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import equinox as eqx
 import numpy as np
@@ -47,6 +48,7 @@ from diffguide.studies.montecarlo import batched_sweep
 from diffguide.studies.random_rails import GaussianRailModel, sample_rails
 from diffguide.studies.tolerance import measure_values
 
+ROOT = Path(__file__).resolve().parents[1]
 SPEC = with_overrides(spec_from_config(default_config()), nx=10, ny=5)
 X = np.linspace(-0.3, 0.3, 5)
 NAMES = ("thickness", "carriage_spacing")
@@ -220,7 +222,7 @@ def test_interior_optimum_matches_a_grid(rails):
 
 def test_bad_input():
     with pytest.raises(ValueError, match="design variable must be one of thickness"):
-        design(SPEC, X, variables=("rail_spacing",))
+        design(SPEC, X, variables=("nut_x",))
     with pytest.raises(ValueError, match="where this machine's mesh keeps its topology"):
         design(SPEC, X, variables=("carriage_spacing",), bounds=[(0.2, 0.4)])
     with pytest.raises(ValueError, match="0 < lo < hi"):
@@ -308,6 +310,9 @@ def test_cli(tmp_path, capsys):
     (["--vary", "thickness", "--objective", "roll:mean"], "range:ERR:POINT"),
     (["--vary", "thickness", "--vary", "thickness"], "each variable once"),
     (["--vary", "carriage_spacing=100:500", "--mesh", "10x5"], "keeps its topology"),
+    (["--vary", "thickness", "--config",
+      str(ROOT / "data" / "examples" / "superelement" / "machine.toml")],
+     "a design varies the plate and the layout"),
 ])
 def test_cli_bad_input(tmp_path, capsys, argv, match):
     assert main(["design", *argv, "--out", str(tmp_path / "d.csv"), "--json",

@@ -201,6 +201,11 @@ def run(args) -> int:
     varied = [parse_vary(v) for v in args.vary]
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     cfg = machine_config(args)
+    if cfg.get("table_source"):
+        raise ValueError(f"{args.config}: the table is imported from "
+                         f"{cfg['table_source']['given']} (source = \"superelement\"): a design "
+                         "varies the plate and the layout, which an imported matrix fixes; "
+                         "design on the plate model, then reduce the chosen design in your FE code")
     positions = default_positions(cfg) if args.positions is None else parse_positions(
         args.positions)
     half = cfg["machine"]["stroke_mm"] / 2
