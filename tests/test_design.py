@@ -318,3 +318,19 @@ def test_cli_bad_input(tmp_path, capsys, argv, match):
     assert main(["design", *argv, "--out", str(tmp_path / "d.csv"), "--json",
                  str(tmp_path / "d.json"), "--no-cache"]) == 2
     assert match in capsys.readouterr().err
+
+
+def test_rail_length_constraint_is_stroke_plus_spacing_plus_carriage():
+    """The rail length the stroke needs, from the machine file's own numbers: stroke 700 mm,
+    carriages at ±160 mm, each footprint 60 mm along X (``default_config``)."""
+    cfg = default_config()
+    stroke = cfg["machine"]["stroke_mm"]
+    cx = cfg["guideway"]["carriage_x_mm"]
+    b = cfg["guideway"]["carriage_footprint_mm"][0]
+    c = parse_constraint("rail_length<=1200")
+    assert c.value == pytest.approx(1.2)
+    need = (stroke + (cx[1] - cx[0]) + b) * 1e-3
+    assert float(CONSTRAINTS["rail_length"].of(SPEC)) == pytest.approx(need)
+    assert float(c.slack(SPEC)) == pytest.approx(1.2 - need)
+    moved = with_overrides(SPEC, carriage_spacing=0.3)
+    assert float(CONSTRAINTS["rail_length"].of(moved)) == pytest.approx(need - 0.02)

@@ -15,7 +15,7 @@ from .montecarlo import add_study_arguments, check_study, split_cpu_into_devices
 VARIABLE_UNITS = {"thickness": ("mm", 1e-3), "carriage_spacing": ("mm", 1e-3),
                   "rail_spacing": ("mm", 1e-3), "preload_fraction": ("%", 1e-2),
                   "E": ("GPa", 1e9)}
-CONSTRAINT_UNITS = {"mass": "kg", "preload": "N", "spacing": "mm"}
+CONSTRAINT_UNITS = {"mass": "kg", "preload": "N", "spacing": "mm", "rail_length": "mm"}
 
 
 def add_parser(sub) -> None:
@@ -42,7 +42,8 @@ def add_parser(sub) -> None:
                    "(the NN %% quantile, Harrell-Davis)")
     p.add_argument("--constraint", action="append", default=None, metavar="Q<=V",
                    help="QUANTITY<=V, >=V or =V: mass (kg, the plate), preload (N, total), "
-                   "spacing (mm: carriage spacing - (table length - carriage length)). Repeat")
+                   "spacing (mm: carriage spacing - (table length - carriage length)), "
+                   "rail_length (mm: stroke + carriage spacing + carriage length). Repeat")
     p.add_argument("--rail-rms-um", type=float, default=1.0,
                    help="RMS straightness of each rail and plane (µm)")
     p.add_argument("--samples", type=int, default=64,

@@ -23,13 +23,14 @@ and its default bounds:
   machine has them, are not counted);
 - ``preload``: the total preload force ``n_c·f·C`` of the ``n_c`` carriages (N);
 - ``spacing``: the carriage spacing less the room on the table, ``s − (L − b)`` (m; ``b`` the
-  carriage footprint's length): ``spacing<=0`` keeps the carriages under the table.
+  carriage footprint's length): ``spacing<=0`` keeps the carriages under the table;
+- ``rail_length``: the rail length the stroke needs, ``S + s + b`` (m; ``S`` the stroke):
+  ``rail_length<=L`` keeps both carriages of a rail on rails of length ``L`` over the stroke.
 """
 
 import dataclasses
 from collections.abc import Callable
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -156,6 +157,16 @@ class Quantity:
     what: str
 
 
+def rail_length_needed(spec: MachineSpec):
+    """The rail length the stroke needs, ``S + s + b`` (m): stroke ``S``, carriage spacing
+    ``s``, carriage footprint length ``b`` — both carriages of a rail stay on it over the whole
+    stroke. ``rail_length<=L`` keeps a design on rails of length ``L``."""
+    s = spec.guideway.carriage_spacing
+    if s is None:
+        s = spec.guideway.carriage_x[1] - spec.guideway.carriage_x[0]
+    return spec.stroke + s + spec.guideway.footprint[0]
+
+
 CONSTRAINTS: dict[str, Quantity] = {
     q.name: q
     for q in (
@@ -163,6 +174,8 @@ CONSTRAINTS: dict[str, Quantity] = {
         Quantity("preload", "N", 1.0, total_preload, "total preload force of the carriages"),
         Quantity("spacing", "mm", 1e-3, spacing_margin,
                  "carriage spacing − (table length − carriage length)"),
+        Quantity("rail_length", "mm", 1e-3, rail_length_needed,
+                 "rail length the stroke needs: stroke + carriage spacing + carriage length"),
     )
 }
 
@@ -236,12 +249,13 @@ def check_bounds(spec: MachineSpec, names, bounds) -> tuple[tuple[float, float],
         if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
             raise ValueError(f"{name}: bounds must be finite with 0 < lo < hi, got "
                              f"{lo / u:g}:{hi / u:g} {v.unit}")
-        if name == "carriage_spacing" and not (default[0] <= lo and hi <= default[1]):
+        if name in ("carriage_spacing", "rail_spacing") and not (default[0] <= lo
+                                                                 and hi <= default[1]):
             raise ValueError(
-                f"carriage_spacing: bounds {lo / u:g}:{hi / u:g} {v.unit} leave the range "
+                f"{name}: bounds {lo / u:g}:{hi / u:g} {v.unit} leave the range "
                 f"{default[0] / u:.4g}:{default[1] / u:.4g} {v.unit} where this machine's mesh "
                 "keeps its topology (footprint lines would pass other grid lines); refine or "
-                "coarsen the mesh, or move guideway.carriage_x")
+                "coarsen the mesh, or move guideway.carriage_x / rail_y_mm")
         if name == "preload_fraction" and not hi < 1:
             raise ValueError(f"preload_fraction: bounds must lie in (0, 100) %, got "
                              f"{lo / u:g}:{hi / u:g} %")
@@ -252,12 +266,3 @@ def check_bounds(spec: MachineSpec, names, bounds) -> tuple[tuple[float, float],
 def spec_values(spec: MachineSpec, names) -> np.ndarray:
     """The current values (SI) of the variables ``names`` on ``spec``."""
     return np.array([VARIABLES[n].value(spec) for n in names], dtype=float)
-
-
-def fixed_spec(spec: MachineSpec) -> MachineSpec:
-    """``spec`` with ``carriage_spacing`` made explicit (its configuration's value when unset), so
-    that every design iterate traces the same computation."""
-    if spec.guideway.carriage_spacing is None:
-        spec = eqx.tree_at(lambda m: m.guideway.carriage_spacing, spec, _spacing(spec),
-                           is_leaf=lambda x: x is None)
-    return spec
