@@ -15,6 +15,13 @@ lies within one grid spacing of the grid's. The compile time of each is measured
     python bench/bench_design.py                          # 10x5 mesh, 32 samples, 15x15 grid
     python bench/bench_design.py --samples 256 --grid 25  # larger
     python bench/bench_design.py --host-devices 2         # shard the samples over 2 CPU devices
+
+The GPU check, one short call on a machine with the project's tree and its own JAX (every JAX
+device is used; nothing to install with PYTHONPATH):
+
+    PYTHONPATH=src python bench/bench_design.py --samples 4096 --grid 11 --json $OUT/design.json
+
+(not yet run on a GPU: the sessions that built it had no device.)
 """
 
 import argparse
