@@ -31,6 +31,7 @@ from diffguide.machine.build import build_machine, with_overrides
 from diffguide.studies.design import (
     Objective,
     design,
+    design_knots,
     harrell_davis_weights,
     paired_improvement,
     parse_objective,
@@ -40,6 +41,7 @@ from diffguide.studies.design_space import (
     CONSTRAINTS,
     MIN_GAP,
     VARIABLES,
+    check_bounds,
     parse_constraint,
     table_mass,
 )
@@ -223,8 +225,10 @@ def test_interior_optimum_matches_a_grid(rails):
 def test_bad_input():
     with pytest.raises(ValueError, match="design variable must be one of thickness"):
         design(SPEC, X, variables=("nut_x",))
-    with pytest.raises(ValueError, match="where this machine's mesh keeps its topology"):
-        design(SPEC, X, variables=("carriage_spacing",), bounds=[(0.2, 0.4)])
+    with pytest.raises(ValueError, match="overlaps the carriages' footprints"):
+        design(SPEC, X, variables=("carriage_spacing",), bounds=[(0.05, 0.4)])
+    with pytest.raises(ValueError, match="puts the rails' footprints off the table"):
+        design(SPEC, X, variables=("rail_spacing",), bounds=[(0.2, 0.5)])
     with pytest.raises(ValueError, match="0 < lo < hi"):
         design(SPEC, X, variables=("thickness",), bounds=[(0.08, 0.03)])
     with pytest.raises(ValueError, match="n_samples: 8 samples are too few"):
@@ -309,7 +313,7 @@ def test_cli(tmp_path, capsys):
     (["--vary", "thickness", "--constraint", "mass<<3"], "a constraint is QUANTITY<=V"),
     (["--vary", "thickness", "--objective", "roll:mean"], "range:ERR:POINT"),
     (["--vary", "thickness", "--vary", "thickness"], "each variable once"),
-    (["--vary", "carriage_spacing=100:500", "--mesh", "10x5"], "keeps its topology"),
+    (["--vary", "carriage_spacing=100:960", "--mesh", "10x5"], "footprints off the table"),
     (["--vary", "thickness", "--config",
       str(ROOT / "data" / "examples" / "superelement" / "machine.toml")],
      "a design varies the plate and the layout"),
@@ -334,3 +338,25 @@ def test_rail_length_constraint_is_stroke_plus_spacing_plus_carriage():
     assert float(c.slack(SPEC)) == pytest.approx(1.2 - need)
     moved = with_overrides(SPEC, carriage_spacing=0.3)
     assert float(CONSTRAINTS["rail_length"].of(moved)) == pytest.approx(need - 0.02)
+
+
+def test_wide_bounds_recentre_the_mesh_to_the_users_bound():
+    """Carriage spacing over 200..330 mm, wider than the first mesh's range (261..339 mm): the
+    roll-difference mean falls with the spacing, so the optimum is the user's lower bound,
+    reached by re-centring the mesh; its objective there is that of the machine rebuilt at
+    200 mm (``carriage_x = ±100 mm``) by the ordinary sweep on the same rails."""
+    res = design(SPEC, X, variables=("carriage_spacing",), bounds=[(0.2, 0.33)], n_samples=N,
+                 check_samples=0, chunk_size=N)
+    assert res.stages[0]["bounds"][0][0] > 0.25 and res.stages[0]["recentred"]
+    assert res.optimum[0] == pytest.approx(0.2, abs=1e-9)
+    assert res.active_bounds == (("carriage_spacing", "lower"),)
+    assert res.stages[-1]["carriage_x"] == pytest.approx((-0.1, 0.1))
+    assert {r["stage"] for r in res.history} == set(range(len(res.stages)))
+    knots = design_knots(SPEC, X, 0.2, (0.2, 0.33))
+    rails = sample_rails(0, N, GaussianRailModel(1e-6, 0.2), knots=knots)
+    plain = np.mean(measures(rails, (float(SPEC.table.thickness), 0.2)))
+    assert res.after.value == pytest.approx(plain, rel=1e-9)
+    assert res.after.value < res.before.value
+    # the command line takes such bounds (its parse, then the design's check)
+    name, b = parse_vary("carriage_spacing=200:400")
+    assert check_bounds(SPEC, [name], [b]) == (pytest.approx((0.2, 0.4)),)

@@ -25,10 +25,24 @@ equilibrium fails at an iterate are left out of that iterate's statistic and cou
 inequality constraints, our exact gradients) on the variables scaled to ``[0, 1]`` within their
 bounds, the objective scaled by its starting value.
 
+**Wide layout bounds: re-centring the mesh.** A traced ``carriage_spacing`` or
+``rail_spacing`` moves the footprint lines of a fixed mesh topology, so it reaches only the
+mesh's range around the specification's positions
+(:func:`~diffguide.studies.design_space.carriage_spacing_range`). The bounds may be wider:
+SLSQP runs on the intersection of the bounds and the current mesh's range; when its optimum
+lies on a *mesh* end (not a bound of the user's), the specification's positions are moved
+there (:func:`~diffguide.machine.morph.apply_layout`), the mesh is rebuilt around them (a new
+range) and SLSQP continues from that point — at most :data:`MAX_RECENTRINGS` times. The
+objective jumps slightly at a re-centring (another discretisation of the same design); the
+optimum is the last stage's, on the last mesh. A start outside the specification's mesh range
+re-centres first. The rails are drawn once, covering the widest carriage spacing of the bounds
+(:func:`design_knots`), so every stage uses the same common random numbers.
+
 **The check.** The original and the optimum are re-evaluated on *fresh* rails (another seed),
 each with its interval, and their difference on those same rails with a paired interval
 (:func:`paired_improvement`): the improvement counts (:attr:`DesignResult.improved`) when its
-95 % interval lies above zero.
+95 % interval lies above zero. Each is evaluated on its own mesh: the start on the first
+stage's, the optimum on the last stage's.
 """
 
 import dataclasses
@@ -41,7 +55,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..inverse.problem import visited_range
-from ..machine.build import build_machine
+from ..machine.build import build_machine, layout_ranges, with_overrides
+from ..machine.morph import apply_layout
 from ..machine.spec import MachineSpec
 from .design_space import CONSTRAINTS, VARIABLES, Constraint, apply_all, check_bounds, spec_values
 from .design_sweep import DesignSweep
@@ -50,6 +65,10 @@ from .tolerance import measure_unit, order_statistic_bounds, parse_range_measure
 
 #: Two-sided confidence of the objective's intervals.
 CONFIDENCE = 0.95
+#: The most re-centrings of the mesh in one :func:`design` (module docstring).
+MAX_RECENTRINGS = 8
+#: The traced layout variables, whose range is the mesh's.
+LAYOUT = ("carriage_spacing", "rail_spacing")
 _Z = 1.959963984540054
 
 
@@ -190,7 +209,12 @@ class DesignResult:
             active_bounds: ``(name, "lower" | "upper")``. history: one dict per evaluation
             (``x`` SI, ``objective``, ``gradient``, ``failed``, ``iteration``). evaluations:
             objective-and-gradient evaluations; sample_sweeps: sample sweeps (each with its
-            derivatives) in them. success, message: SLSQP's. seconds: wall time.
+            derivatives) in them. success, message: SLSQP's (last stage). seconds: wall time.
+            stages: one dict per mesh (module docstring): ``stage``, ``carriage_x``,
+            ``rail_y`` (the mesh's positions, m), ``bounds`` (SI, the bounds within that mesh's
+            range), ``start``, ``optimum`` (SI), ``objective`` at the optimum, ``recentred``
+            (the next stage re-centres at this optimum), ``message``; history rows carry their
+            ``stage``.
     """
 
     variables: tuple[str, ...]
@@ -217,6 +241,7 @@ class DesignResult:
     success: bool
     message: str
     seconds: float
+    stages: tuple = ()
 
     @property
     def improved(self) -> bool | None:
@@ -300,76 +325,78 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         x_ref: reference position (m). knots: the rails' ``(start, spacing, n)`` (default
             :func:`design_knots`). chunk_size: samples per compiled call. devices: JAX devices
             to shard the samples over (default ``jax.devices()``).
-        max_iterations, ftol: SLSQP's. progress: called with one line per evaluation.
+        max_iterations, ftol: SLSQP's (per mesh). progress: called with one line per
+            evaluation and per re-centring.
     """
-    from scipy.optimize import minimize
-
     t0 = time.perf_counter()
     obj = parse_objective(objective) if isinstance(objective, str) else objective
     names = tuple(variables)
     bounds = _checked(spec, names, bounds, obj, n_samples, check_samples, constraints)
     x0 = np.clip(spec_values(spec, names), [b[0] for b in bounds], [b[1] for b in bounds])
-    lo, width = np.array([b[0] for b in bounds]), np.array([b[1] - b[0] for b in bounds])
     if knots is None:
         sb = bounds[names.index("carriage_spacing")] if "carriage_spacing" in names else None
         knots = design_knots(spec, positions, correlation_length, sb)
     rails = _rails(seed, int(n_samples), rail_rms, correlation_length, kernel, planes, mounting,
                    knots)
-    sweep = DesignSweep(spec, names, rails, positions, obj.measure, x0=x0, x_ref=x_ref,
-                        chunk_size=chunk_size, devices=devices)
     say = progress or (lambda line: None)
-    history: list[dict] = []
-    cache: dict[bytes, tuple] = {}
-    iteration = [0]
-
-    def evaluate(x):
-        key = np.asarray(x, float).tobytes()
-        if key not in cache:
-            m, dm, ok = sweep(x)
-            est, g = statistic(obj, m, dm, ok)
-            cache[key] = (est, g)
-            history.append({"x": np.array(x, float), "objective": est.value, "gradient": g,
-                            "interval": est.interval, "failed": est.failed,
-                            "iteration": iteration[0]})
-            say(f"  evaluation {len(history)} (iteration {iteration[0]}): " + ", ".join(
-                f"{n} {v / VARIABLES[n].scale:.5g} {VARIABLES[n].unit}" for n, v in zip(names, x))
-                + f": {obj.text()} {est.value * 1e6:.5g} {obj.unit}"
-                + (f" ({est.failed} samples failed)" if est.failed else ""))
-        return cache[key]
-
-    before, _ = evaluate(x0)
-    f0 = max(abs(before.value), 1e-30)
-
-    def fun(u):
-        return evaluate(lo + width * u)[0].value / f0
-
-    def jac(u):
-        return evaluate(lo + width * u)[1] * width / f0
-
-    cons = [_scipy_constraint(spec, names, c, lo, width) for c in constraints]
-
-    def advance(_):
-        iteration[0] += 1
-
-    res = minimize(fun, (x0 - lo) / width, jac=jac, method="SLSQP",
-                   bounds=[(0.0, 1.0)] * len(names), constraints=cons, callback=advance,
-                   options={"maxiter": int(max_iterations), "ftol": float(ftol)})
-    u = np.clip(res.x, 0.0, 1.0)
-    x_opt = lo + width * u
-    after, grad = evaluate(x_opt)
+    run = _Run(obj, names, rails, positions, x_ref, chunk_size, devices, say)
+    mesh = spec
+    if any(not (mb[0] <= v <= mb[1]) for v, mb in zip(x0, _mesh_bounds(spec, names, bounds))):
+        mesh = _recentred(spec, names, x0)
+        say("  re-centred the mesh at the start: " + _range_text(mesh, names, bounds))
+    start_mesh, stages, x = mesh, [], x0
+    while True:
+        sb = _mesh_bounds(mesh, names, bounds)
+        res, x_opt, u = run.stage(mesh, sb, np.clip(x, *np.transpose(sb)), constraints,
+                                  max_iterations, ftol)
+        ends = [n for n, ui, b, m in zip(names, u, bounds, sb) if n in LAYOUT and (
+            (ui <= 1e-6 and m[0] > b[0] + 1e-9 * b[0])
+            or (ui >= 1 - 1e-6 and m[1] < b[1] - 1e-9 * b[1]))]
+        again = bool(ends) and len(stages) < MAX_RECENTRINGS
+        g = mesh.guideway
+        stages.append({"stage": len(stages), "carriage_x": tuple(map(float, g.carriage_x)),
+                       "rail_y": tuple(map(float, g.rail_y)), "bounds": tuple(sb),
+                       "start": np.clip(x, *np.transpose(sb)), "optimum": x_opt,
+                       "objective": run.evaluate(x_opt)[0].value, "recentred": again,
+                       "message": str(res.message)})
+        if not again:
+            if ends:
+                say(f"  stopped after {MAX_RECENTRINGS} re-centrings with {', '.join(ends)} at "
+                    "a mesh end")
+            break
+        x = _recentre_point(mesh, names, x_opt, u, bounds, ends)
+        mesh = _recentred(mesh, names, x)
+        say("  re-centred the mesh at " + ", ".join(
+            f"{n.replace('_', ' ')} {xi * 1e3:.5g} mm" for n, xi in zip(names, x)
+            if n in LAYOUT) + ": new range " + _range_text(mesh, names, bounds))
+    if len(stages) > 1:  # the optimum rebuilt on its own mesh
+        mesh = _recentred(mesh, names, x_opt)
+        run.use(mesh, x_opt)
+        g = mesh.guideway
+        stages.append({"stage": len(stages), "carriage_x": tuple(map(float, g.carriage_x)),
+                       "rail_y": tuple(map(float, g.rail_y)),
+                       "bounds": tuple(_mesh_bounds(mesh, names, bounds)), "start": x_opt,
+                       "optimum": x_opt, "objective": run.evaluate(x_opt)[0].value,
+                       "recentred": False, "message": "the optimum rebuilt on its own mesh"})
+    after, grad = run.evaluate(x_opt)
     final = [(c.text(), float(c.slack(apply_all(spec, names, jnp.asarray(x_opt)))))
              for c in constraints]
     constraint_rows = tuple((t, s, abs(s) <= 1e-6 * max(1.0, abs(c.value)))
                             for (t, s), c in zip(final, constraints))
-    active_bounds = tuple((n, "lower") if ui <= 1e-6 else (n, "upper")
-                          for n, ui in zip(names, u) if ui <= 1e-6 or ui >= 1 - 1e-6)
+    active_bounds = tuple(
+        (n, "lower") if xi <= b[0] + 1e-6 * (b[1] - b[0]) else (n, "upper")
+        for n, xi, b in zip(names, x_opt, bounds)
+        if xi <= b[0] + 1e-6 * (b[1] - b[0]) or xi >= b[1] - 1e-6 * (b[1] - b[0]))
     fresh_before = fresh_after = improvement = None
     if check_samples:
         fresh = _rails(seed + 1, int(check_samples), rail_rms, correlation_length, kernel,
                        planes, mounting, knots)
-        check = DesignSweep(spec, names, fresh, positions, obj.measure, x0=x0, x_ref=x_ref,
-                            chunk_size=sweep.chunk, devices=devices)  # the same compiled chunk
+        check = DesignSweep(start_mesh, names, fresh, positions, obj.measure, x0=x0,
+                            x_ref=x_ref, chunk_size=run.chunk, devices=devices)
         mb, _, okb = check(x0)
+        if mesh is not start_mesh:  # the optimum on its own (the last) mesh
+            check = DesignSweep(mesh, names, fresh, positions, obj.measure, x0=x_opt,
+                                x_ref=x_ref, chunk_size=run.chunk, devices=devices)
         ma, _, oka = check(x_opt)
         fresh_before = statistic(obj, mb, None, okb)[0]
         fresh_after = statistic(obj, ma, None, oka)[0]
@@ -377,14 +404,116 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         say(f"  fresh rails (seed {seed + 1}, {check_samples} samples): start "
             f"{_text(fresh_before)}, optimum {_text(fresh_after)}, improvement "
             f"{_text(improvement)} {obj.unit}")
+    history = run.history
     return DesignResult(
         names, tuple(VARIABLES[n].unit for n in names), tuple(VARIABLES[n].scale for n in names),
-        bounds, x0, x_opt, obj, before, after, fresh_before, fresh_after, improvement,
+        bounds, x0, x_opt, obj, run.before, after, fresh_before, fresh_after, improvement,
         np.asarray(grad),
         constraint_rows, active_bounds, tuple(history), len(history),
         len(history) * int(n_samples) + (2 * int(check_samples) if check_samples else 0),
         int(n_samples), int(seed), seed + 1 if check_samples else None, bool(res.success),
-        str(res.message), time.perf_counter() - t0)
+        str(res.message), time.perf_counter() - t0, tuple(stages))
+
+
+def _mesh_bounds(mesh: MachineSpec, names, bounds) -> list[tuple[float, float]]:
+    """``bounds`` (SI) with each layout variable's cut to ``mesh``'s range."""
+    out = []
+    for n, (lo, hi) in zip(names, bounds):
+        if n in LAYOUT:
+            mlo, mhi = VARIABLES[n].bounds(mesh)
+            lo, hi = max(lo, mlo), min(hi, mhi)
+        out.append((float(lo), float(hi)))
+    return out
+
+
+def _recentre_point(mesh: MachineSpec, names, x_opt, u, bounds, ends) -> np.ndarray:
+    """Where to re-centre (SI): each variable of ``ends`` at its mesh end moved :data:`MIN_GAP`
+    on to the open end of :func:`~diffguide.machine.build.layout_ranges`, where its footprint
+    line meets the fixed grid line that bounded it (the rebuilt mesh merges the two, so its range
+    extends past it), within ``bounds``; the others at ``x_opt``."""
+    x = np.array(x_opt, float)
+    ranges = layout_ranges(mesh)
+    for i, n in enumerate(names):
+        if n in ends:
+            x[i] = np.clip(ranges[n][0] if u[i] <= 0.5 else ranges[n][1], *bounds[i])
+    return x
+
+
+def _recentred(mesh: MachineSpec, names, x) -> MachineSpec:
+    """``mesh`` with its positions moved to the layout variables' values in ``x`` (SI)."""
+    layout = {n: float(xi) for n, xi in zip(names, x) if n in LAYOUT}
+    return apply_layout(with_overrides(mesh, **layout))
+
+
+def _range_text(mesh: MachineSpec, names, bounds) -> str:
+    return ", ".join(f"{m[0] * 1e3:.5g} .. {m[1] * 1e3:.5g} mm" for n, m in
+                     zip(names, _mesh_bounds(mesh, names, bounds)) if n in LAYOUT)
+
+
+class _Run:
+    """The evaluations of one :func:`design`: the sweep of the current mesh, a cache per mesh,
+    the history (every stage) and SLSQP on one mesh (:meth:`stage`)."""
+
+    def __init__(self, obj, names, rails, positions, x_ref, chunk_size, devices, say):
+        self.obj, self.names, self.rails, self.positions = obj, names, rails, positions
+        self.x_ref, self.chunk, self.devices, self.say = x_ref, chunk_size, devices, say
+        self.history: list[dict] = []
+        self.iteration, self.n_stage, self.sweep, self.cache = 0, -1, None, {}
+        self.before, self.f0 = None, 1.0
+
+    def evaluate(self, x):
+        key = np.asarray(x, float).tobytes()
+        if key not in self.cache:
+            m, dm, ok = self.sweep(x)
+            est, g = statistic(self.obj, m, dm, ok)
+            self.cache[key] = (est, g)
+            self.history.append({"x": np.array(x, float), "objective": est.value,
+                                 "gradient": g, "interval": est.interval,
+                                 "failed": est.failed, "iteration": self.iteration,
+                                 "stage": self.n_stage})
+            self.say(f"  evaluation {len(self.history)} (iteration {self.iteration}): "
+                     + ", ".join(f"{n} {v / VARIABLES[n].scale:.5g} {VARIABLES[n].unit}"
+                                 for n, v in zip(self.names, x))
+                     + f": {self.obj.text()} {est.value * 1e6:.5g} {self.obj.unit}"
+                     + (f" ({est.failed} samples failed)" if est.failed else ""))
+        return self.cache[key]
+
+    def use(self, mesh, x):
+        """Evaluate on ``mesh`` (a new stage) from now on; ``x`` (SI) the build's start."""
+        self.n_stage += 1
+        self.sweep = DesignSweep(mesh, self.names, self.rails, self.positions, self.obj.measure,
+                                 x0=x, x_ref=self.x_ref, chunk_size=self.chunk,
+                                 devices=self.devices)
+        self.chunk, self.cache = self.sweep.chunk, {}
+
+    def stage(self, mesh, sb, x_start, constraints, max_iterations, ftol):
+        """SLSQP on ``mesh`` within ``sb`` (SI) from ``x_start``: (its result, the optimum
+        (SI), the optimum scaled to [0, 1])."""
+        from scipy.optimize import minimize
+
+        self.use(mesh, x_start)
+        lo = np.array([b[0] for b in sb])
+        width = np.array([b[1] - b[0] for b in sb])
+        est, _ = self.evaluate(x_start)
+        if self.before is None:
+            self.before, self.f0 = est, max(abs(est.value), 1e-30)
+
+        def fun(u):
+            return self.evaluate(lo + width * u)[0].value / self.f0
+
+        def jac(u):
+            return self.evaluate(lo + width * u)[1] * width / self.f0
+
+        def advance(_):
+            self.iteration += 1
+
+        cons = [_scipy_constraint(mesh, self.names, c, lo, width) for c in constraints]
+        res = minimize(fun, (x_start - lo) / width, jac=jac, method="SLSQP",
+                       bounds=[(0.0, 1.0)] * len(self.names), constraints=cons,
+                       callback=advance,
+                       options={"maxiter": int(max_iterations), "ftol": float(ftol)})
+        u = np.clip(res.x, 0.0, 1.0)
+        return res, lo + width * u, u
 
 
 def _text(e: Estimate) -> str:

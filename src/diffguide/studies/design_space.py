@@ -234,9 +234,30 @@ def apply_all(spec: MachineSpec, names, x) -> MachineSpec:
     return spec
 
 
+def _check_layout_bounds(spec: MachineSpec, name: str, lo: float, hi: float) -> None:
+    """``ValueError`` unless spacings ``lo..hi`` (m) of ``name`` keep the two footprints apart
+    (``lo > b + MIN_GAP``, ``b`` the footprint's side along the spacing) and on the table
+    (``|c| + hi/2 + b/2 <= L/2 - MIN_GAP``, ``c`` the pair's centre, ``L`` the table's side)."""
+    g = spec.guideway
+    if name == "carriage_spacing":
+        b, pair, side, what = g.footprint[0], g.carriage_x, spec.table.length, "carriages"
+    else:
+        b, pair, side, what = g.footprint[1], g.rail_y, spec.table.width, "rails"
+    centre = 0.5 * (float(pair[0]) + float(pair[-1]))
+    top = 2 * (side / 2 - MIN_GAP - abs(centre)) - b
+    if lo < b + MIN_GAP:
+        raise ValueError(f"{name}: lower bound {lo * 1e3:g} mm overlaps the {what}' footprints "
+                         f"({b * 1e3:g} mm long): it must be >= {(b + MIN_GAP) * 1e3:.4g} mm")
+    if hi > top:
+        raise ValueError(f"{name}: upper bound {hi * 1e3:g} mm puts the {what}' footprints off "
+                         f"the table ({side * 1e3:g} mm): it must be <= {top * 1e3:.4g} mm")
+
+
 def check_bounds(spec: MachineSpec, names, bounds) -> tuple[tuple[float, float], ...]:
-    """Each variable's bounds (SI; ``None``: its default), checked: known name, ``lo < hi``,
-    within the default range of ``carriage_spacing`` (the mesh's) and of positive quantities."""
+    """Each variable's bounds (SI; ``None``: its default), checked: known name, ``0 < lo < hi``,
+    the spacings' footprints neither overlapping nor off the table (:func:`_check_layout_bounds`;
+    bounds wider than the mesh's range are allowed: :func:`~diffguide.studies.design.design`
+    re-centres the mesh)."""
     out = []
     for name, b in zip(names, bounds):
         if name not in VARIABLES:
@@ -249,13 +270,8 @@ def check_bounds(spec: MachineSpec, names, bounds) -> tuple[tuple[float, float],
         if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
             raise ValueError(f"{name}: bounds must be finite with 0 < lo < hi, got "
                              f"{lo / u:g}:{hi / u:g} {v.unit}")
-        if name in ("carriage_spacing", "rail_spacing") and not (default[0] <= lo
-                                                                 and hi <= default[1]):
-            raise ValueError(
-                f"{name}: bounds {lo / u:g}:{hi / u:g} {v.unit} leave the range "
-                f"{default[0] / u:.4g}:{default[1] / u:.4g} {v.unit} where this machine's mesh "
-                "keeps its topology (footprint lines would pass other grid lines); refine or "
-                "coarsen the mesh, or move guideway.carriage_x / rail_y_mm")
+        if name in ("carriage_spacing", "rail_spacing"):
+            _check_layout_bounds(spec, name, lo, hi)
         if name == "preload_fraction" and not hi < 1:
             raise ValueError(f"preload_fraction: bounds must lie in (0, 100) %, got "
                              f"{lo / u:g}:{hi / u:g} %")
