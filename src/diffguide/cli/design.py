@@ -35,7 +35,7 @@ def add_parser(sub) -> None:
                    help="a design variable and its bounds in user units: thickness (mm), "
                    "carriage_spacing (mm), rail_spacing (mm), preload_fraction (%%), E (GPa); "
                    "without =LO:HI its default bounds (the spacings: the range where the mesh "
-                   "keeps its topology). Repeat for several")
+                   "keeps its topology; wider bounds re-centre the mesh). Repeat for several")
     p.add_argument("--objective", default="roll-difference:mean",
                    help="MEASURE:STATISTIC; MEASURE 'roll-difference' (µrad) or "
                    "'range:ERR:POINT' (e.g. range:EBX:P1); STATISTIC 'mean' or 'pNN' "
@@ -104,14 +104,14 @@ def history_csv(res) -> str:
     ou = res.objective.unit
     head += [f"objective_{ou}", f"objective_low_{ou}", f"objective_high_{ou}"]
     head += [f"d_objective_d_{n}_{ou}_per_{unit}" for n, unit in zip(res.variables, res.units)]
-    head.append("failed")
+    head += ["failed", "stage"]
     lines = [",".join(head).replace("µ", "u").replace("%", "pct")]
     for k, r in enumerate(res.history, 1):
         cells = [str(k), str(r["iteration"])]
         cells += [f"{x / s:.8g}" for x, s in zip(r["x"], res.scales)]
         cells += [f"{v * u:.8g}" for v in (r["objective"], *r["interval"])]
         cells += [f"{g * u * s:.8g}" for g, s in zip(r["gradient"], res.scales)]
-        cells.append(str(r["failed"]))
+        cells += [str(r["failed"]), str(r.get("stage", 0))]
         lines.append(",".join(cells))
     return "\n".join(lines) + "\n"
 
@@ -145,7 +145,12 @@ def as_json(res) -> dict:
             "constraints": cons, "active_bounds": [list(a) for a in res.active_bounds],
             "evaluations": res.evaluations, "sample_sweeps": res.sample_sweeps,
             "samples": res.n_samples, "seed": res.seed, "fresh_seed": res.fresh_seed,
-            "success": res.success, "message": res.message, "seconds": res.seconds}
+            "success": res.success, "message": res.message, "seconds": res.seconds,
+            "stages": [{"stage": st["stage"], "carriage_x_mm": [v * 1e3 for v in st["carriage_x"]],
+                        "rail_y_mm": [v * 1e3 for v in st["rail_y"]],
+                        "optimum": [v / s for v, s in zip(st["optimum"], res.scales)],
+                        "objective": st["objective"] * 1e6, "recentred": st["recentred"],
+                        "message": st["message"]} for st in res.stages]}
 
 
 def report(res) -> str:
@@ -169,6 +174,9 @@ def report(res) -> str:
                      f"(slack {slack:.4g} SI)")
     for n, side in res.active_bounds:
         lines.append(f"  {n} at its {side} bound")
+    if len(res.stages) > 1:
+        lines.append(f"  the mesh re-centred {sum(st['recentred'] for st in res.stages)} times; "
+                     "the optimum on its own mesh")
     if res.fresh_before is not None:
         if res.improved:
             verdict = "improved (beyond its interval)"

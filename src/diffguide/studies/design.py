@@ -344,40 +344,9 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
     if any(not (mb[0] <= v <= mb[1]) for v, mb in zip(x0, _mesh_bounds(spec, names, bounds))):
         mesh = _recentred(spec, names, x0)
         say("  re-centred the mesh at the start: " + _range_text(mesh, names, bounds))
-    start_mesh, stages, x = mesh, [], x0
-    while True:
-        sb = _mesh_bounds(mesh, names, bounds)
-        res, x_opt, u = run.stage(mesh, sb, np.clip(x, *np.transpose(sb)), constraints,
-                                  max_iterations, ftol)
-        ends = [n for n, ui, b, m in zip(names, u, bounds, sb) if n in LAYOUT and (
-            (ui <= 1e-6 and m[0] > b[0] + 1e-9 * b[0])
-            or (ui >= 1 - 1e-6 and m[1] < b[1] - 1e-9 * b[1]))]
-        again = bool(ends) and len(stages) < MAX_RECENTRINGS
-        g = mesh.guideway
-        stages.append({"stage": len(stages), "carriage_x": tuple(map(float, g.carriage_x)),
-                       "rail_y": tuple(map(float, g.rail_y)), "bounds": tuple(sb),
-                       "start": np.clip(x, *np.transpose(sb)), "optimum": x_opt,
-                       "objective": run.evaluate(x_opt)[0].value, "recentred": again,
-                       "message": str(res.message)})
-        if not again:
-            if ends:
-                say(f"  stopped after {MAX_RECENTRINGS} re-centrings with {', '.join(ends)} at "
-                    "a mesh end")
-            break
-        x = _recentre_point(mesh, names, x_opt, u, bounds, ends)
-        mesh = _recentred(mesh, names, x)
-        say("  re-centred the mesh at " + ", ".join(
-            f"{n.replace('_', ' ')} {xi * 1e3:.5g} mm" for n, xi in zip(names, x)
-            if n in LAYOUT) + ": new range " + _range_text(mesh, names, bounds))
-    if len(stages) > 1:  # the optimum rebuilt on its own mesh
-        mesh = _recentred(mesh, names, x_opt)
-        run.use(mesh, x_opt)
-        g = mesh.guideway
-        stages.append({"stage": len(stages), "carriage_x": tuple(map(float, g.carriage_x)),
-                       "rail_y": tuple(map(float, g.rail_y)),
-                       "bounds": tuple(_mesh_bounds(mesh, names, bounds)), "start": x_opt,
-                       "optimum": x_opt, "objective": run.evaluate(x_opt)[0].value,
-                       "recentred": False, "message": "the optimum rebuilt on its own mesh"})
+    start_mesh = mesh
+    mesh, stages, res, x_opt = _stages(run, mesh, names, bounds, x0, constraints,
+                                       max_iterations, ftol, say)
     after, grad = run.evaluate(x_opt)
     final = [(c.text(), float(c.slack(apply_all(spec, names, jnp.asarray(x_opt)))))
              for c in constraints]
@@ -415,6 +384,52 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         str(res.message), time.perf_counter() - t0, tuple(stages))
 
 
+def _stages(run, mesh, names, bounds, x, constraints, max_iterations, ftol, say):
+    """SLSQP on ``mesh`` from ``x``, re-centred while its optimum lies on a mesh end that is not
+    a bound (module docstring): (the last mesh, one row per mesh (:class:`DesignResult`), the
+    last SLSQP result, the optimum (SI))."""
+    stages = []
+    while True:
+        sb = _mesh_bounds(mesh, names, bounds)
+        start = np.clip(x, *np.transpose(sb))
+        res, x_opt, u = run.stage(mesh, sb, start, constraints, max_iterations, ftol)
+        ends = [n for n, ui, b, m in zip(names, u, bounds, sb) if n in LAYOUT and (
+            (ui <= 1e-6 and m[0] > b[0] + 1e-9 * b[0])
+            or (ui >= 1 - 1e-6 and m[1] < b[1] - 1e-9 * b[1]))]
+        stages.append(_row(len(stages), mesh, sb, start, x_opt, run.evaluate(x_opt)[0].value,
+                           str(res.message)))
+        if not ends:
+            break
+        if len(stages) > MAX_RECENTRINGS:
+            say(f"  stopped after {MAX_RECENTRINGS} re-centrings with {', '.join(ends)} at a "
+                "mesh end")
+            break
+        x = _recentre_point(mesh, names, x_opt, u, bounds, ends)
+        try:
+            new = _recentred(mesh, names, x)
+            text = _range_text(new, names, bounds)
+        except ValueError as exc:  # e.g. a footprint line onto another patch's
+            say(f"  could not re-centre the mesh: {exc}")
+            break
+        stages[-1]["recentred"], mesh = True, new
+        say("  re-centred the mesh at " + ", ".join(
+            f"{n.replace('_', ' ')} {xi * 1e3:.5g} mm" for n, xi in zip(names, x)
+            if n in LAYOUT) + ": new range " + text)
+    if len(stages) > 1:  # the optimum rebuilt on its own mesh
+        mesh = _recentred(mesh, names, x_opt)
+        run.use(mesh, x_opt)
+        stages.append(_row(len(stages), mesh, _mesh_bounds(mesh, names, bounds), x_opt, x_opt,
+                           run.evaluate(x_opt)[0].value, "the optimum rebuilt on its own mesh"))
+    return mesh, stages, res, x_opt
+
+
+def _row(k, mesh, sb, start, optimum, objective, message) -> dict:
+    g = mesh.guideway
+    return {"stage": k, "carriage_x": tuple(map(float, g.carriage_x)),
+            "rail_y": tuple(map(float, g.rail_y)), "bounds": tuple(sb), "start": start,
+            "optimum": optimum, "objective": objective, "recentred": False, "message": message}
+
+
 def _mesh_bounds(mesh: MachineSpec, names, bounds) -> list[tuple[float, float]]:
     """``bounds`` (SI) with each layout variable's cut to ``mesh``'s range."""
     out = []
@@ -422,6 +437,10 @@ def _mesh_bounds(mesh: MachineSpec, names, bounds) -> list[tuple[float, float]]:
         if n in LAYOUT:
             mlo, mhi = VARIABLES[n].bounds(mesh)
             lo, hi = max(lo, mlo), min(hi, mhi)
+            if not lo < hi:
+                raise ValueError(f"{n}: the mesh's range {mlo * 1e3:.5g} .. {mhi * 1e3:.5g} mm "
+                                 "around the positions is empty within the bounds; choose "
+                                 "another --mesh")
         out.append((float(lo), float(hi)))
     return out
 
