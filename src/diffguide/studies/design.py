@@ -31,8 +31,11 @@ mesh's range around the specification's positions
 (:func:`~diffguide.studies.design_space.carriage_spacing_range`). The bounds may be wider:
 SLSQP runs on the intersection of the bounds and the current mesh's range; when its optimum
 lies on a *mesh* end (not a bound of the user's), the specification's positions are moved
-there (:func:`~diffguide.machine.morph.apply_layout`), the mesh is rebuilt around them (a new
-range) and SLSQP continues from that point — at most :data:`MAX_RECENTRINGS` times. The
+there (:func:`~diffguide.machine.morph.apply_layout`) — to the open end of the mesh's range,
+:data:`~diffguide.studies.design_space.MIN_GAP` further, where the moving footprint line meets
+the grid line that stopped it, so that the rebuilt mesh merges the two and its range reaches
+past — the mesh is rebuilt around them (a new range) and SLSQP continues from that point, at
+most :data:`MAX_RECENTRINGS` times; the optimum is then rebuilt on its own mesh. The
 objective jumps slightly at a re-centring (another discretisation of the same design); the
 optimum is the last stage's, on the last mesh. A start outside the specification's mesh range
 re-centres first. The rails are drawn once, covering the widest carriage spacing of the bounds
@@ -341,7 +344,8 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
     say = progress or (lambda line: None)
     run = _Run(obj, names, rails, positions, x_ref, chunk_size, devices, say)
     mesh = spec
-    if any(not (mb[0] <= v <= mb[1]) for v, mb in zip(x0, _mesh_bounds(spec, names, bounds))):
+    if any(n in LAYOUT and not (VARIABLES[n].bounds(spec)[0] <= v <= VARIABLES[n].bounds(spec)[1])
+           for n, v in zip(names, x0)):  # a start off the specification's mesh range
         mesh = _recentred(spec, names, x0)
         say("  re-centred the mesh at the start: " + _range_text(mesh, names, bounds))
     start_mesh = mesh
