@@ -175,7 +175,7 @@ def report(res) -> str:
     for n, side in res.active_bounds:
         lines.append(f"  {n} at its {side} bound")
     if len(res.stages) > 1:
-        lines.append(f"  the mesh re-centred {sum(st['recentred'] for st in res.stages)} times; "
+        lines.append(f"  re-centrings of the mesh: {sum(st['recentred'] for st in res.stages)}; "
                      "the optimum on its own mesh")
     if res.fresh_before is not None:
         if res.improved:

@@ -347,7 +347,9 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
     if any(n in LAYOUT and not (VARIABLES[n].bounds(spec)[0] <= v <= VARIABLES[n].bounds(spec)[1])
            for n, v in zip(names, x0)):  # a start off the specification's mesh range
         mesh = _recentred(spec, names, x0)
-        say("  re-centred the mesh at the start: " + _range_text(mesh, names, bounds))
+        say("  re-centred the mesh at the start (" + ", ".join(
+            f"{n.replace('_', ' ')} {v * 1e3:.5g} mm" for n, v in zip(names, x0) if n in LAYOUT)
+            + "): range " + _range_text(mesh, names, bounds))
     start_mesh = mesh
     mesh, stages, res, x_opt = _stages(run, mesh, names, bounds, x0, constraints,
                                        max_iterations, ftol, say)
