@@ -60,10 +60,16 @@ class Variable:
         return with_overrides(spec, **{self.name: x})
 
 
-def _spacing(spec: MachineSpec) -> float:
+def carriage_spacing_of(spec: MachineSpec):
+    """The carriage spacing (m; may be traced): the traced ``carriage_spacing`` where set,
+    else the configuration's ``carriage_x`` difference."""
     s = spec.guideway.carriage_spacing
     cx = spec.guideway.carriage_x
-    return float(cx[1] - cx[0]) if s is None else float(s)
+    return cx[1] - cx[0] if s is None else s
+
+
+def _spacing(spec: MachineSpec) -> float:
+    return float(carriage_spacing_of(spec))
 
 
 def _layout_range(spec: MachineSpec, name: str) -> tuple[float, float]:
@@ -139,10 +145,7 @@ def total_preload(spec: MachineSpec):
 
 def spacing_margin(spec: MachineSpec):
     """Carriage spacing less the table length minus the carriage length, ``s − (L − b)`` (m)."""
-    s = spec.guideway.carriage_spacing
-    if s is None:
-        s = spec.guideway.carriage_x[1] - spec.guideway.carriage_x[0]
-    return s - (spec.table.length - spec.guideway.footprint[0])
+    return carriage_spacing_of(spec) - (spec.table.length - spec.guideway.footprint[0])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -161,10 +164,7 @@ def rail_length_needed(spec: MachineSpec):
     """The rail length the stroke needs, ``S + s + b`` (m): stroke ``S``, carriage spacing
     ``s``, carriage footprint length ``b`` — both carriages of a rail stay on it over the whole
     stroke. ``rail_length<=L`` keeps a design on rails of length ``L``."""
-    s = spec.guideway.carriage_spacing
-    if s is None:
-        s = spec.guideway.carriage_x[1] - spec.guideway.carriage_x[0]
-    return spec.stroke + s + spec.guideway.footprint[0]
+    return spec.stroke + carriage_spacing_of(spec) + spec.guideway.footprint[0]
 
 
 CONSTRAINTS: dict[str, Quantity] = {
