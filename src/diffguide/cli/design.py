@@ -39,7 +39,21 @@ def add_parser(sub) -> None:
     p.add_argument("--objective", default="roll-difference:mean",
                    help="MEASURE:STATISTIC; MEASURE 'roll-difference' (µrad) or "
                    "'range:ERR:POINT' (e.g. range:EBX:P1); STATISTIC 'mean' or 'pNN' "
-                   "(the NN %% quantile, Harrell-Davis)")
+                   "(the NN %% quantile, Harrell-Davis). Or plan:CRITERION, the fit's "
+                   "predicted σ for the --plan (no random rails): plan:A (RMS profile σ, µm), "
+                   "plan:worst (largest profile σ, µm), plan:work (largest σ of the predicted "
+                   "errors at --work-point)")
+    p.add_argument("--plan", default="bundled", metavar="PLACEMENTS.csv",
+                   help="with a plan: objective, the measurement plan: 'bundled' (two-axis "
+                   "levels at the corners 50 mm inside the edges, an interferometer at the "
+                   "centre) or a CSV instrument,x_mm,y_mm (as 'diffguide plan --compare'; "
+                   "instrument level, interferometer or straightness), read at the --positions")
+    p.add_argument("--plan-runs", type=int, default=5,
+                   help="with a plan: objective, runs per direction (two directions)")
+    p.add_argument("--work-point", default=None, metavar="X,Y",
+                   help="with plan:work, the work point on the table top (mm)")
+    p.add_argument("--work-reads", default="EAX,EBX",
+                   help="with plan:work, the predicted errors at the work point")
     p.add_argument("--constraint", action="append", default=None, metavar="Q<=V",
                    help="QUANTITY<=V, >=V or =V: mass (kg, the plate), preload (N, total), "
                    "spacing (mm: carriage spacing - (table length - carriage length)), "
@@ -90,9 +104,40 @@ def _check(args) -> None:
     if args.rigid_table:
         raise ValueError("--rigid-table: a design varies the elastic table; not supported here")
     check_study(args)
+    if not 1 <= args.plan_runs <= 1000:
+        raise ValueError(f"--plan-runs must be in 1..1000, got {args.plan_runs}")
+    if args.objective == "plan:work" and args.work_point is None:
+        raise ValueError("--objective plan:work needs --work-point X,Y (mm)")
     names = [parse_vary(v)[0] for v in args.vary]
     if len(set(names)) != len(names):
         raise ValueError(f"--vary: each variable once, got {', '.join(names)}")
+
+
+def measurement_plan(args, cfg, positions):
+    """The :class:`~diffguide.studies.design_plan.MeasurementPlan` of ``--plan``,
+    ``--plan-runs``, ``--work-point``/``--work-reads``, ``--rail-rms-um`` at ``positions`` (m)."""
+    from ..inverse.instruments import bundled_layout_mm, check_on_table
+    from ..io.plan_files import read_placement_rows
+    from ..studies.design_plan import MeasurementPlan
+
+    table = (cfg["table"]["length_mm"], cfg["table"]["width_mm"])
+    rows = bundled_layout_mm(*table) if args.plan == "bundled" else read_placement_rows(
+        args.plan, table)
+    work = None
+    if args.work_point is not None:
+        try:
+            wx, wy = (float(v) for v in args.work_point.split(","))
+        except ValueError:
+            raise ValueError(f"--work-point must be X,Y (mm), got {args.work_point!r}") from None
+        check_on_table("work point", wx, wy, table, "--work-point")
+        wq = tuple(q.strip().upper() for q in args.work_reads.split(","))
+        work = (wx * 1e-3, wy * 1e-3, wq)
+    try:
+        return MeasurementPlan(tuple((k, x * 1e-3, y * 1e-3) for k, x, y in rows), positions,
+                               runs=args.plan_runs, rail_rms=args.rail_rms_um * 1e-6,
+                               work_point=work)
+    except ValueError as exc:
+        raise ValueError(f"--plan {args.plan}: {exc}") from None
 
 
 def history_csv(res) -> str:
@@ -101,7 +146,7 @@ def history_csv(res) -> str:
     u = 1e6
     head = ["evaluation", "iteration"]
     head += [f"{n}_{unit}" for n, unit in zip(res.variables, res.units)]
-    ou = res.objective.unit
+    ou = res.unit
     head += [f"objective_{ou}", f"objective_low_{ou}", f"objective_high_{ou}"]
     head += [f"d_objective_d_{n}_{ou}_per_{unit}" for n, unit in zip(res.variables, res.units)]
     head += ["failed", "stage"]
@@ -132,13 +177,13 @@ def as_json(res) -> dict:
         variables[n] = {"unit": unit, "bounds": [b / s for b in res.bounds[j]],
                         "start": res.start[j] / s, "optimum": res.optimum[j] / s,
                         "sensitivity": res.sensitivities[j] * 1e6 * s,
-                        "sensitivity_unit": f"{res.objective.unit}/{unit}"}
+                        "sensitivity_unit": f"{res.unit}/{unit}"}
     cons = []
     for text, slack, active in res.constraints:
         q = CONSTRAINTS[text.split()[0]]
         cons.append({"constraint": text, "slack": slack / q.scale, "unit": q.unit,
                      "active": active})
-    return {"objective": res.objective.text(), "unit": res.objective.unit,
+    return {"objective": res.objective.text(), "unit": res.unit,
             "variables": variables, "before": _est(res.before), "after": _est(res.after),
             "fresh_before": _est(res.fresh_before), "fresh_after": _est(res.fresh_after),
             "improvement": _est(res.improvement), "improved": res.improved,
@@ -155,20 +200,25 @@ def as_json(res) -> dict:
 
 def report(res) -> str:
     """The result in words (user units)."""
-    ou = res.objective.unit
+    ou = res.unit
 
     def est(e):
         return f"{e.value * 1e6:.4g} {ou} (95 % interval {e.interval[0] * 1e6:.4g} .. " \
                f"{e.interval[1] * 1e6:.4g})"
 
-    lines = [f"design for minimum {res.objective.text()} ({res.n_samples} samples, "
+    what = f"{res.n_samples} samples" if res.n_samples else "deterministic, no random rails"
+    lines = [f"design for minimum {res.objective.text()} ({what}, "
              f"{res.evaluations} evaluations, {res.seconds:.0f} s; SLSQP: {res.message})"]
     for j, (n, unit, s) in enumerate(zip(res.variables, res.units, res.scales)):
         lines.append(f"  {n}: {res.start[j] / s:.5g} -> {res.optimum[j] / s:.5g} {unit} "
                      f"(bounds {res.bounds[j][0] / s:.5g} .. {res.bounds[j][1] / s:.5g}; "
                      f"d objective/d {n} = {res.sensitivities[j] * 1e6 * s:.4g} {ou}/{unit})")
-    lines.append(f"  objective on the optimisation samples: {est(res.before)} -> "
-                 f"{est(res.after)}")
+    if res.n_samples:
+        lines.append(f"  objective on the optimisation samples: {est(res.before)} -> "
+                     f"{est(res.after)}")
+    else:
+        lines.append(f"  objective: {res.before.value * 1e6:.4g} -> {res.after.value * 1e6:.4g} "
+                     f"{ou} (improvement {res.improvement.value * 1e6:.4g} {ou}, exact)")
     for text, slack, active in res.constraints:
         lines.append(f"  constraint {text}: {'active' if active else 'inactive'} "
                      f"(slack {slack:.4g} SI)")
@@ -206,6 +256,8 @@ def run(args) -> int:
     from .simulate import default_positions, parse_mesh, parse_positions
 
     objective = parse_objective(args.objective)  # malformed input fails before any solve
+    if objective.measure != "plan" and args.work_point is not None:
+        raise ValueError("--work-point is read only with --objective plan:work")
     constraints = [parse_constraint(c) for c in args.constraint or ()]
     varied = [parse_vary(v) for v in args.vary]
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
@@ -226,15 +278,17 @@ def run(args) -> int:
     nx, ny = parse_mesh(args.mesh)
     spec = with_overrides(spec_from_config(cfg), nx=nx, ny=ny)
     say(f"design of {args.config or args.preset} (mesh {nx}x{ny}): {objective.text()} over "
-        f"{', '.join(n for n, _ in varied)}; {args.samples} samples x {len(positions)} "
-        "positions per evaluation (the first compiles)")
+        f"{', '.join(n for n, _ in varied)}; "
+        + (f"the {args.plan} plan" if objective.measure == "plan" else f"{args.samples} samples")
+        + f" x {len(positions)} positions per evaluation (the first compiles)")
     res = design(
         spec, positions, variables=[n for n, _ in varied], bounds=[b for _, b in varied],
         objective=objective, constraints=constraints, rail_rms=args.rail_rms_um * 1e-6,
         correlation_length=args.corr_mm * 1e-3, kernel=_KERNELS[args.kernel],
         planes=_PLANES[args.planes], mounting=None if args.mounting == "none" else args.mounting,
         n_samples=args.samples, check_samples=args.check_samples, seed=args.seed,
-        chunk_size=args.chunk, max_iterations=args.max_iter, progress=say)
+        chunk_size=args.chunk, max_iterations=args.max_iter, progress=say,
+        plan=measurement_plan(args, cfg, positions) if objective.measure == "plan" else None)
     if not args.quiet:
         print(report(res))
     atomic_write_text(args.out, history_csv(res))

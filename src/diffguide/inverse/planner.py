@@ -187,7 +187,7 @@ def _checked_inputs(base, instruments, positions, runs, bidirectional, candidate
     return sites, candidates, instruments, positions, readings, work
 
 
-def _prior(basis: RailBasis, rail_rms: float, n_q: int) -> dict:
+def rail_prior(basis: RailBasis, rail_rms: float, n_q: int) -> dict:
     """The gauge (both slopes fixed, as :func:`~.fit.fit_rails` with straightness data), ``Z``,
     ``Ω = Zᵀ(Ω_curv + Ω_amp)Z``, the reporting gauge ``Π``, λ from the expected RMS and the
     prior precision ``P = diag(λΩ, I)``."""
@@ -381,7 +381,7 @@ def build_planner(
     lo, hi = visited_range(base, positions)
     basis = RailBasis.covering(lo, hi, knot_spacing)
     n_q = family.n_params
-    prior = _prior(basis, rail_rms, n_q)
+    prior = rail_prior(basis, rail_rms, n_q)
     Z = prior["Z"]
     used = {q for i in instruments for q in i.quantities}
     rows_q = sorted(

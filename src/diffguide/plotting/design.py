@@ -27,7 +27,7 @@ def plot_design_convergence(result, title: str = "", *, ax=None):
     a.fill_between(k, lo, hi, color="C0", alpha=0.2, label="95 % interval (samples)")
     a.plot(k, f, "o-", color="C0", label=result.objective.text())
     a.set_xlabel("evaluation")
-    a.set_ylabel(result.objective.unit)
+    a.set_ylabel(result.unit)
     a.set_title("objective", fontsize=10)
     a.legend(fontsize=8)
     a.grid(alpha=0.3)

@@ -61,6 +61,7 @@ from ..inverse.problem import visited_range
 from ..machine.build import build_machine, layout_ranges, with_overrides
 from ..machine.morph import apply_layout
 from ..machine.spec import MachineSpec
+from .design_plan import PLAN_CRITERIA, MeasurementPlan, PlanSigma, on_plan_sites, plan_basis
 from .design_space import CONSTRAINTS, VARIABLES, Constraint, apply_all, check_bounds, spec_values
 from .design_sweep import DesignSweep
 from .random_rails import GaussianRailModel, MountingTolerance, default_knots, sample_rails
@@ -78,12 +79,20 @@ _Z = 1.959963984540054
 @dataclasses.dataclass(frozen=True)
 class Objective:
     """A statistic (``"mean"`` or ``"pNN"``, ``0 < NN < 100``) of a per-sample measure
-    (``"roll_difference"`` or ``"range:ERR:POINT"``, :mod:`~diffguide.studies.tolerance`)."""
+    (``"roll_difference"`` or ``"range:ERR:POINT"``, :mod:`~diffguide.studies.tolerance`), or
+    the fit's predicted σ for a measurement plan: measure ``"plan"``, statistic a criterion of
+    :data:`~diffguide.studies.design_plan.PLAN_CRITERIA` (``A``, ``worst``, ``work``; the plan
+    itself is :func:`design`'s ``plan``)."""
 
     measure: str
     statistic: str = "mean"
 
     def __post_init__(self):
+        if self.measure == "plan":
+            if self.statistic not in PLAN_CRITERIA:
+                raise ValueError(f"objective plan:CRITERION: CRITERION must be one of "
+                                 f"{', '.join(PLAN_CRITERIA)}, got {self.statistic!r}")
+            return
         if self.measure != "roll_difference":
             parse_range_measure(self.measure)
         if self.statistic != "mean":
@@ -94,11 +103,15 @@ class Objective:
 
     @property
     def unit(self) -> str:
-        return measure_unit(self.measure)
+        """The user unit (SI × 1e6); a ``plan:work`` objective's is its plan's
+        (:meth:`~diffguide.studies.design_plan.MeasurementPlan.unit`)."""
+        return "µm" if self.measure == "plan" else measure_unit(self.measure)
 
     @property
     def quantile(self) -> float | None:
-        return None if self.statistic == "mean" else _percent(self.statistic) / 100
+        if self.measure == "plan" or self.statistic == "mean":
+            return None
+        return _percent(self.statistic) / 100
 
     def text(self) -> str:
         return f"{self.measure}:{self.statistic}"
@@ -115,12 +128,13 @@ def _percent(text: str) -> float | None:
 
 
 def parse_objective(text: str) -> Objective:
-    """``"roll-difference:mean"``, ``"roll_difference:p95"``, ``"range:EBX:P1:mean"`` →
-    :class:`Objective` (``ValueError`` naming the allowed forms)."""
+    """``"roll-difference:mean"``, ``"roll_difference:p95"``, ``"range:EBX:P1:mean"``,
+    ``"plan:A"`` → :class:`Objective` (``ValueError`` naming the allowed forms)."""
     measure, _, stat = text.replace("roll-difference", "roll_difference").rpartition(":")
     if not measure:
         raise ValueError(f"objective must be MEASURE:STATISTIC (MEASURE 'roll-difference' or "
-                         f"'range:ERR:POINT', STATISTIC 'mean' or 'pNN'), got {text!r}")
+                         f"'range:ERR:POINT', STATISTIC 'mean' or 'pNN') or plan:CRITERION "
+                         f"(CRITERION one of {', '.join(PLAN_CRITERIA)}), got {text!r}")
     return Objective(measure, stat)
 
 
@@ -217,7 +231,7 @@ class DesignResult:
             ``rail_y`` (the mesh's positions, m), ``bounds`` (SI, the bounds within that mesh's
             range), ``start``, ``optimum`` (SI), ``objective`` at the optimum, ``recentred``
             (the next stage re-centres at this optimum), ``message``; history rows carry their
-            ``stage``.
+            ``stage``. unit: the objective's user unit (its SI value × 1e6).
     """
 
     variables: tuple[str, ...]
@@ -245,6 +259,7 @@ class DesignResult:
     message: str
     seconds: float
     stages: tuple = ()
+    unit: str = ""
 
     @property
     def improved(self) -> bool | None:
@@ -309,7 +324,7 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
            mounting: MountingTolerance | str | None = None, n_samples: int = 64,
            check_samples: int = 64, seed: int = 0, x_ref: float = 0.0, knots=None,
            chunk_size: int | None = None, devices=None, max_iterations: int = 30,
-           ftol: float = 1e-6,
+           ftol: float = 1e-6, plan: MeasurementPlan | None = None,
            progress: Callable[[str], None] | None = None) -> DesignResult:
     """Minimise ``objective`` over the design ``variables`` of ``spec`` (module docstring).
 
@@ -328,21 +343,34 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         x_ref: reference position (m). knots: the rails' ``(start, spacing, n)`` (default
             :func:`design_knots`). chunk_size: samples per compiled call. devices: JAX devices
             to shard the samples over (default ``jax.devices()``).
-        max_iterations, ftol: SLSQP's (per mesh). progress: called with one line per
-            evaluation and per re-centring.
+        max_iterations, ftol: SLSQP's (per mesh).
+        plan: the :class:`~diffguide.studies.design_plan.MeasurementPlan` of a ``plan:``
+            objective (its sites become the machine's control points, its positions replace
+            ``positions``; no random rails: the objective is deterministic, its interval a
+            point and the improvement exact). progress: called with one line per evaluation
+            and per re-centring.
     """
     t0 = time.perf_counter()
     obj = parse_objective(objective) if isinstance(objective, str) else objective
     names = tuple(variables)
+    if (obj.measure == "plan") != (plan is not None):
+        raise ValueError("a plan:CRITERION objective needs plan=MeasurementPlan(...), and a plan "
+                         f"is read only by such an objective (objective {obj.text()!r})")
+    if plan is not None:
+        spec, positions, check_samples = on_plan_sites(spec, plan), plan.positions, 0
     bounds = _checked(spec, names, bounds, obj, n_samples, check_samples, constraints)
     x0 = np.clip(spec_values(spec, names), [b[0] for b in bounds], [b[1] for b in bounds])
-    if knots is None:
-        sb = bounds[names.index("carriage_spacing")] if "carriage_spacing" in names else None
-        knots = design_knots(spec, positions, correlation_length, sb)
-    rails = _rails(seed, int(n_samples), rail_rms, correlation_length, kernel, planes, mounting,
-                   knots)
+    sb = bounds[names.index("carriage_spacing")] if "carriage_spacing" in names else None
     say = progress or (lambda line: None)
-    run = _Run(obj, names, rails, positions, x_ref, chunk_size, devices, say)
+    if plan is None:
+        if knots is None:
+            knots = design_knots(spec, positions, correlation_length, sb)
+        rails = _rails(seed, int(n_samples), rail_rms, correlation_length, kernel, planes,
+                       mounting, knots)
+        run = _Run(obj, names, rails, positions, x_ref, chunk_size, devices, say)
+    else:
+        run = _Run(obj, names, None, positions, x_ref, chunk_size, devices, say,
+                   plan=plan, basis=plan_basis(spec, plan, None if sb is None else sb[1]))
     mesh = spec
     if any(n in LAYOUT and not (VARIABLES[n].bounds(spec)[0] <= v <= VARIABLES[n].bounds(spec)[1])
            for n, v in zip(names, x0)):  # a start off the specification's mesh range
@@ -379,7 +407,11 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         say(f"  fresh rails (seed {seed + 1}, {check_samples} samples): start "
             f"{_text(fresh_before)}, optimum {_text(fresh_after)}, improvement "
             f"{_text(improvement)} {obj.unit}")
+    elif plan is not None:  # deterministic: the improvement is exact
+        d = run.before.value - after.value
+        improvement = Estimate(d, (d, d), 0, 0)
     history = run.history
+    n_samples = 0 if plan is not None else n_samples
     return DesignResult(
         names, tuple(VARIABLES[n].unit for n in names), tuple(VARIABLES[n].scale for n in names),
         bounds, x0, x_opt, obj, run.before, after, fresh_before, fresh_after, improvement,
@@ -387,7 +419,8 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         constraint_rows, active_bounds, tuple(history), len(history),
         len(history) * int(n_samples) + (2 * int(check_samples) if check_samples else 0),
         int(n_samples), int(seed), seed + 1 if check_samples else None, bool(res.success),
-        str(res.message), time.perf_counter() - t0, tuple(stages))
+        str(res.message), time.perf_counter() - t0, tuple(stages),
+        obj.unit if plan is None else plan.unit(obj.statistic))
 
 
 def _stages(run, mesh, names, bounds, x, constraints, max_iterations, ftol, say):
@@ -479,9 +512,12 @@ class _Run:
     """The evaluations of one :func:`design`: the sweep of the current mesh, a cache per mesh,
     the history (every stage) and SLSQP on one mesh (:meth:`stage`)."""
 
-    def __init__(self, obj, names, rails, positions, x_ref, chunk_size, devices, say):
+    def __init__(self, obj, names, rails, positions, x_ref, chunk_size, devices, say,
+                 plan=None, basis=None):
         self.obj, self.names, self.rails, self.positions = obj, names, rails, positions
         self.x_ref, self.chunk, self.devices, self.say = x_ref, chunk_size, devices, say
+        self.plan, self.basis = plan, basis
+        self.unit = obj.unit if plan is None else plan.unit(obj.statistic)
         self.history: list[dict] = []
         self.iteration, self.n_stage, self.sweep, self.cache = 0, -1, None, {}
         self.before, self.f0 = None, 1.0
@@ -489,8 +525,17 @@ class _Run:
     def evaluate(self, x):
         key = np.asarray(x, float).tobytes()
         if key not in self.cache:
-            m, dm, ok = self.sweep(x)
-            est, g = statistic(self.obj, m, dm, ok)
+            if self.plan is None:
+                m, dm, ok = self.sweep(x)
+                est, g = statistic(self.obj, m, dm, ok)
+            else:
+                v, g, ok = self.sweep(x)
+                if not ok:
+                    raise ValueError("the machine's equilibrium at straight rails did not "
+                                     "converge at the design " + ", ".join(
+                                         f"{n} {xi / VARIABLES[n].scale:.5g} {VARIABLES[n].unit}"
+                                         for n, xi in zip(self.names, x)))
+                est = Estimate(v, (v, v), 0, 0)
             self.cache[key] = (est, g)
             self.history.append({"x": np.array(x, float), "objective": est.value,
                                  "gradient": g, "interval": est.interval,
@@ -499,17 +544,22 @@ class _Run:
             self.say(f"  evaluation {len(self.history)} (iteration {self.iteration}): "
                      + ", ".join(f"{n} {v / VARIABLES[n].scale:.5g} {VARIABLES[n].unit}"
                                  for n, v in zip(self.names, x))
-                     + f": {self.obj.text()} {est.value * 1e6:.5g} {self.obj.unit}"
+                     + f": {self.obj.text()} {est.value * 1e6:.5g} {self.unit}"
                      + (f" ({est.failed} samples failed)" if est.failed else ""))
         return self.cache[key]
 
     def use(self, mesh, x):
         """Evaluate on ``mesh`` (a new stage) from now on; ``x`` (SI) the build's start."""
         self.n_stage += 1
+        self.cache = {}
+        if self.plan is not None:
+            self.sweep = PlanSigma(mesh, self.names, self.plan, self.obj.statistic, x0=x,
+                                   basis=self.basis, x_ref=self.x_ref)
+            return
         self.sweep = DesignSweep(mesh, self.names, self.rails, self.positions, self.obj.measure,
                                  x0=x, x_ref=self.x_ref, chunk_size=self.chunk,
                                  devices=self.devices)
-        self.chunk, self.cache = self.sweep.chunk, {}
+        self.chunk = self.sweep.chunk
 
     def stage(self, mesh, sb, x_start, constraints, max_iterations, ftol):
         """SLSQP on ``mesh`` within ``sb`` (SI) from ``x_start``: (its result, the optimum
