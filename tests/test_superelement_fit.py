@@ -168,6 +168,17 @@ def test_plan_and_montecarlo_on_the_imported_table(tmp_path):
     assert (tmp_path / "mc.json").stat().st_size > 0
 
 
+def test_mesh_is_refused_and_stiffness_prior_read_on_an_imported_table(tmp_path, capsys):
+    """``montecarlo --mesh`` on an imported table is refused (it has no mesh), not ignored;
+    ``plan --stiffness-prior`` reaches the structure's prior (a plain plate refuses it)."""
+    assert main(["montecarlo", "--config", str(MACHINE), "--mesh", "10x5", "--samples", "2",
+                 "--out", str(tmp_path / "mc.json"), "--quiet"]) == 2
+    assert "it has no mesh to set" in capsys.readouterr().err
+    assert main(["plan", "--preset", "majda2012", "--stiffness-prior", "1,0.5,2", "--positions",
+                 "8", "--out", str(tmp_path / "plan"), "--quiet"]) == 2
+    assert "--stiffness-prior applies to a table imported" in capsys.readouterr().err
+
+
 def test_table_command_refuses_an_imported_table(capsys):
     assert main(["table", "--config", str(MACHINE), "--quiet"]) == 2
     assert "the table command solves diffguide's plate" in capsys.readouterr().err

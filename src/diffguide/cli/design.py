@@ -275,9 +275,10 @@ def run(args) -> int:
                          f"{args.config or args.preset}, got {args.positions!r}")
     from ..io.config import spec_from_config
 
-    nx, ny = parse_mesh(args.mesh)
+    nx, ny = parse_mesh(args.mesh) if args.mesh else (None, None)
     spec = with_overrides(spec_from_config(cfg), nx=nx, ny=ny)
-    say(f"design of {args.config or args.preset} (mesh {nx}x{ny}): {objective.text()} over "
+    say(f"design of {args.config or args.preset} (mesh {args.mesh or 'of the machine file'}): "
+        f"{objective.text()} over "
         f"{', '.join(n for n, _ in varied)}; "
         + (f"the {args.plan} plan" if objective.measure == "plan" else f"{args.samples} samples")
         + f" x {len(positions)} positions per evaluation (the first compiles)")

@@ -39,7 +39,9 @@ def add_study_arguments(p) -> None:
                    help="table positions START:STOP:COUNT (mm); default: the machine's whole "
                    "stroke at 71 positions")
     p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
-    p.add_argument("--mesh", default="20x10", help="table mesh NXxNY (elements)")
+    p.add_argument("--mesh", default=None,
+                   help="table mesh NXxNY (elements); default the machine's own (majda2012: "
+                   "20x10); refused for a table imported from an FE model")
     p.add_argument("--chunk", type=int, default=None,
                    help="samples per compiled call (default: 8 per CPU device, 1024 per GPU)")
     p.add_argument("--seed", type=int, default=0, help="random seed")
@@ -184,17 +186,16 @@ def study_setup(args, rms: float, say):
             f"--positions must lie within the ±{half:g} mm stroke of "
             f"{args.config or args.preset}, got {args.positions!r}"
         )
-    nx, ny = parse_mesh(args.mesh)
+    nx, ny = parse_mesh(args.mesh) if args.mesh else (None, None)
     model = GaussianRailModel(rms, args.corr_mm * 1e-3, _KERNELS[args.kernel],
                               _PLANES[args.planes])
     name = args.config or args.preset
-    if cfg.get("table_source"):  # imported from an FE model: no mesh (--mesh not used)
-        nx = ny = None
+    if cfg.get("table_source"):
         say(f"building the {name} machine (table imported from "
             f"{cfg['table_source']['given']}) ...")
     else:
-        say(f"building the {name} machine (table mesh {nx}x{ny}) ...")
-    machine = config_machine(cfg, nx=nx, ny=ny)
+        say(f"building the {name} machine (table mesh {args.mesh or 'of the machine file'}) ...")
+    machine = config_machine(cfg, nx=nx, ny=ny)  # --mesh on an imported table: refused
     # the rails must cover what the elements visit: the default ±0.6 m knots (majda2012) or,
     # for a longer machine, the visited range with a margin
     lo, hi = visited_range(machine, positions)

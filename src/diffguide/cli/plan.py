@@ -180,6 +180,13 @@ def _add_structure_arguments(p) -> None:
         help="as 'diffguide fit' (default: the machine's, [0.25, 2] times it)",
     )
     p.add_argument(
+        "--stiffness-prior",
+        metavar="VALUE,LO,HI",
+        default=None,
+        help="as 'diffguide fit': a table imported from an FE model (default: the file's "
+        "[fit] stiffness_prior, else 1,0.5,2)",
+    )
+    p.add_argument(
         "--draws",
         type=int,
         default=8,
@@ -312,7 +319,7 @@ def _family(args, cfg, spec, sites, n_candidates, instruments):
             criterion=None,
             thickness_prior_mm=args.thickness_prior_mm,
             preload_prior=args.preload_prior,
-            stiffness_prior=getattr(args, "stiffness_prior", None),
+            stiffness_prior=args.stiffness_prior,
         ),
         cfg,
     )
