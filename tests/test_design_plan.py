@@ -3,9 +3,9 @@
 
 Its value against the measurement planner's (:func:`~diffguide.inverse.planner.build_planner`:
 another formulation — the numpy posterior of eigen-factored blocks from the planner's own
-Jacobian over every site); its derivatives w.r.t. thickness and carriage spacing against central
-differences of *rebuilt* machines; a design's optimum against the optimality conditions at its
-bounds; bad input; the command line."""
+Jacobian over every site); its derivatives w.r.t. every design variable (thickness, carriage and
+rail spacing, preload, modulus) against central differences of *rebuilt* machines; a design's
+optimum against the optimality conditions at its bounds; bad input; the command line."""
 
 import dataclasses
 import json
@@ -24,7 +24,7 @@ from diffguide.studies.design_plan import MeasurementPlan, PlanSigma, on_plan_si
 from diffguide.studies.design_space import spec_values
 
 SPEC = with_overrides(spec_from_config(default_config()), nx=10, ny=5)
-NAMES = ("thickness", "carriage_spacing")
+NAMES = ("thickness", "carriage_spacing", "rail_spacing", "preload_fraction", "E")
 POS = np.linspace(-0.3, 0.3, 7)
 ROWS = tuple((k, x * 1e-3, y * 1e-3) for k, x, y in bundled_layout_mm(1000.0, 500.0))
 PLAN = MeasurementPlan(ROWS, POS, work_point=(0.1, 0.05, ("EAX", "EBX")))
@@ -52,21 +52,27 @@ def test_value_is_the_planners(objectives):
         assert v == pytest.approx(want, rel=1e-9), c
 
 
-def _rebuilt(thickness, spacing):
-    """The specification rebuilt with the carriages at ±spacing/2 (no traced spacing)."""
-    g = dataclasses.replace(MESH.guideway, carriage_x=(-spacing / 2, spacing / 2))
-    return with_overrides(eqx.tree_at(lambda s: s.guideway, MESH, g), thickness=thickness)
+def _rebuilt(thickness, spacing, rail_spacing, preload, modulus):
+    """The specification rebuilt with the carriages at ±spacing/2 and the rails at
+    ±rail_spacing/2 (no traced layout: the mesh lines put where the footprints are), the other
+    values set as plain numbers."""
+    g = dataclasses.replace(MESH.guideway, carriage_x=(-spacing / 2, spacing / 2),
+                            rail_y=(-rail_spacing / 2, rail_spacing / 2))
+    return with_overrides(eqx.tree_at(lambda s: s.guideway, MESH, g), thickness=thickness,
+                          preload_fraction=preload, E=modulus)
 
 
 @pytest.mark.parametrize("criterion", ["A", "work"])
 def test_gradient_matches_central_differences_of_rebuilt_machines(objectives, criterion):
+    """Every design variable (the layout's by machines rebuilt around the moved footprints)."""
     obj = objectives[criterion]
     _, g, _ = obj(X0)
-    for j in range(2):
+    assert np.all(g != 0)
+    for j in range(len(NAMES)):
         h = 1e-5 * X0[j]
         vals = []
         for sgn in (1, -1):
-            x = X0 + sgn * h * np.eye(2)[j]
+            x = X0 + sgn * h * np.eye(len(NAMES))[j]
             again = PlanSigma(_rebuilt(*x), ("thickness",), PLAN, criterion, x0=x[:1],
                               basis=obj.basis)
             vals.append(again(x[:1], grad=False)[0])
