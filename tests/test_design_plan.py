@@ -62,13 +62,16 @@ def _rebuilt(thickness, spacing, rail_spacing, preload, modulus):
                           preload_fraction=preload, E=modulus)
 
 
-@pytest.mark.parametrize("criterion", ["A", "work"])
-def test_gradient_matches_central_differences_of_rebuilt_machines(objectives, criterion):
-    """Every design variable (the layout's by machines rebuilt around the moved footprints)."""
+@pytest.mark.parametrize("criterion, variables", [("A", NAMES),
+                                                  ("work", ("thickness", "rail_spacing"))])
+def test_gradient_matches_central_differences_of_rebuilt_machines(objectives, criterion,
+                                                                  variables):
+    """Every design variable (the layout's by machines rebuilt around the moved footprints);
+    the work point's rows through one variable of the plate and one of the layout."""
     obj = objectives[criterion]
     _, g, _ = obj(X0)
     assert np.all(g != 0)
-    for j in range(len(NAMES)):
+    for j in (NAMES.index(n) for n in variables):
         h = 1e-5 * X0[j]
         vals = []
         for sgn in (1, -1):

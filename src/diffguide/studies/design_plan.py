@@ -223,12 +223,13 @@ class PlanSigma:
         self.calls = 0
 
     def __call__(self, x, *, grad: bool = True):
+        """``(value (SI), gradient (SI per SI; None without grad), converged)``."""
         self.calls += 1
         x = jnp.asarray(np.asarray(x, float))
-        v, g, ok = _value_and_gradient(self.spec, self.names, x, self.prob, self.Z, self.H0,
-                                       self.W, self.sig, self.straight, self.n_pos,
-                                       self.n_read, self.criterion)
-        return float(v), np.asarray(g), bool(ok)
+        v, g, ok = (_value_and_gradient if grad else _value)(
+            self.spec, self.names, x, self.prob, self.Z, self.H0, self.W, self.sig,
+            self.straight, self.n_pos, self.n_read, self.criterion)
+        return float(v), None if g is None else np.asarray(g), bool(ok)
 
 
 def plan_criterion(machine, prob, Z, H0, W, sig, straight, n_pos, n_read, criterion):
@@ -250,6 +251,13 @@ def plan_criterion(machine, prob, Z, H0, W, sig, straight, n_pos, n_read, criter
         return jnp.sqrt(jnp.max(var)), ok
     var = jnp.sum(W * jnp.linalg.solve(H, W.T).T, axis=1) * _UM**2  # m²
     return jnp.sqrt(jnp.mean(var) if criterion == "A" else jnp.max(var)), ok
+
+
+@eqx.filter_jit
+def _value(spec, names, x, prob, Z, H0, W, sig, straight, n_pos, n_read, criterion):
+    machine = build_machine(apply_all(spec, names, x))
+    v, ok = plan_criterion(machine, prob, Z, H0, W, sig, straight, n_pos, n_read, criterion)
+    return v, None, ok
 
 
 @eqx.filter_jit
