@@ -344,3 +344,61 @@ def test_description_file_in_mm_with_rotation_nodes(tmp_path):
     np.testing.assert_allclose(data.matrix.K[np.ix_(order, order)], rm.K, rtol=1e-12,
                                atol=1e-9 * np.abs(rm.K).max())
     np.testing.assert_allclose(data.coords[3], coords[3])
+
+
+def test_point_rotation_from_the_fibre_below_and_from_the_top_face():
+    """A point's rotation from its neighbours on the top face is the face's slope; with a node
+    below it, roll and pitch are the fibre's. The field ``u_x = γ z − ω y``, ``u_y = ω x``,
+    ``u_z = a x + b y``: the fibres tilt by γ about Y, the faces by the slope ``(a, b)``, both
+    turn by ω about Z (the difference is the transverse shear strain ``(a − γ, b)``). The top
+    face gives ``θ = (b, -a, ω)``, the fibre ``(0, γ, ω)``."""
+    from diffguide.fe.superelement import _point_rows
+
+    t, h = 0.05, 0.025
+    coords = {1: (0.1, 0.2, t / 2), 2: (0.1 - h, 0.2, t / 2), 3: (0.1 + h, 0.2, t / 2),
+              4: (0.1, 0.2 - h, t / 2), 5: (0.1, 0.2 + h, t / 2), 6: (0.1, 0.2, -t / 2)}
+    dofs = tuple((n, d) for n in coords for d in (1, 2, 3))
+    rm = ReducedMatrix(np.eye(len(dofs)), dofs, np.zeros(len(dofs)), "test")
+    a, b, g, w = 2e-6, -3e-6, 5e-6, 7e-6
+
+    def u(x, y, z):
+        return np.array([g * z - w * y, w * x, a * x + b * y])
+
+    vec = np.concatenate([u(*coords[n]) for n in coords])
+    face = _point_rows(rm, coords, RetainedPoint("P", 1, (2, 3, 4, 5)), []) @ vec
+    fibre = _point_rows(rm, coords, RetainedPoint("P", 1, (2, 3, 4, 5), below=6), []) @ vec
+    np.testing.assert_allclose(face[3:], [b, -a, w], rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(fibre[3:], [0.0, g, w], rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(face[:3], fibre[:3])
+    coords[6] = (0.1 + 1e-3, 0.2, -t / 2)
+    with pytest.raises(ValueError, match="not straight under"):
+        _point_rows(rm, coords, RetainedPoint("P", 1, (2, 3, 4, 5), below=6), [])
+    with pytest.raises(ValueError, match="needs neighbours too"):
+        _point_rows(rm, coords, RetainedPoint("P", 1, (), below=6), [])
+
+
+def test_point_yaw_from_the_mid_surface():
+    """``u_x = −ω y + c z y``, ``u_y = ω x − c z x``: the in-plane rotation ``½(∂u_y/∂x −
+    ∂u_x/∂y) = ω − c z`` varies through the thickness. From the top-face neighbours the yaw is
+    ``ω − c t/2``; with the nodes under them (``neighbours_below``), the mid-surface's ``ω``."""
+    from diffguide.fe.superelement import _point_rows
+
+    t, h, x0, y0 = 0.05, 0.025, 0.1, 0.2
+    xy = [(x0, y0), (x0 - h, y0), (x0 + h, y0), (x0, y0 - h), (x0, y0 + h)]
+    coords = {k + 1: (x, y, t / 2) for k, (x, y) in enumerate(xy)}
+    coords.update({k + 11: (x, y, -t / 2) for k, (x, y) in enumerate(xy)})
+    dofs = tuple((n, d) for n in coords for d in (1, 2, 3))
+    rm = ReducedMatrix(np.eye(len(dofs)), dofs, np.zeros(len(dofs)), "test")
+    w, c = 7e-6, 4e-5
+
+    def u(x, y, z):
+        return np.array([-w * y + c * z * y, w * x - c * z * x, 0.0])
+
+    vec = np.concatenate([u(*coords[n]) for n in coords])
+    top = RetainedPoint("P", 1, (2, 3, 4, 5), below=11)
+    mid = RetainedPoint("P", 1, (2, 3, 4, 5), below=11, neighbours_below=(12, 13, 14, 15))
+    assert (_point_rows(rm, coords, top, []) @ vec)[5] == pytest.approx(w - c * t / 2, rel=1e-12)
+    assert (_point_rows(rm, coords, mid, []) @ vec)[5] == pytest.approx(w, rel=1e-12)
+    with pytest.raises(ValueError, match="one node per neighbour"):
+        _point_rows(rm, coords, RetainedPoint("P", 1, (2, 3, 4, 5), below=11,
+                                              neighbours_below=(12, 13)), [])

@@ -1,15 +1,16 @@
 """Write the CalculiX deck that reduces the ``majda2012`` table (a solid plate) to the retained
 nodes diffguide needs, and the node file of those nodes.
 
-    python make_plate_deck.py [--variant plate|thin|ribbed] [--nx-el 25] [--layers 2]
+    python make_plate_deck.py [--variant plate|thin|ribbed] [--nx-el 25] [--layers 1]
         # writes plate.inp (the deck), plate_nodes.inp (the retained nodes), plate_held_loads.inp
         # (the self-weight at the held nodes) and plate.toml (the description diffguide reads)
-    ccx plate   # writes plate.dat (the reactions; 10 min on one core for the 25 mm grid)
+    ccx plate   # writes plate.dat (the reactions; 3 min on one core for the 25 mm grid)
 
 The plate (``thin``: 20 mm thick; ``ribbed``: 30 mm on two transverse ribs 20 x 40 mm at
 x = -/+300 mm): 1000 x 500 x 50 mm, cast iron (E 110 GPa, nu 0.26, 7200 kg/m3), C3D20R bricks on a
 grid with lines every ``--nx-el`` mm plus the footprint edges and the control points, ``--layers``
-elements through the thickness. Units: SI (m, N, Pa, kg/m3). Origin: the table centre, the plate
+elements through the thickness (one by default, as CalculiX's model of the whole machine in
+``reference/calculix``; ribs: two through their depth). Units: SI (m, N, Pa, kg/m3). Origin: the table centre, the plate
 mid-surface at z = 0 (top face z = +25 mm, underside -25 mm).
 
 Retained nodes (named for diffguide in the description file, ``plate.toml``):
@@ -19,9 +20,10 @@ Retained nodes (named for diffguide in the description file, ``plate.toml``):
   50 x 50 mm), through the whole thickness; REF NODE 900001 + k at the centre of the footprint on
   the underside, ROT NODE 900101 + k (its DOF 1-3 are the rotations);
 - control points P1 (450, 200), P2 (-450, 200), P3 (-450, -200), P4 (450, -200) mm: the top-face
-  node at the point and its four neighbours one grid line away along X and Y (translations; the
-  rotation is fitted from them); P5 (0, 0) lies in the nut's rigid footprint: its top-face node
-  moves with the nut (nothing retained).
+  node at the point, its four neighbours one grid line away along X and Y, and the underside
+  nodes under all five (translations: roll and pitch from the fibre through the point, yaw from
+  the mid-surface, as a shell's rotations); P5 (0, 0) lies in the nut's rigid footprint: its
+  top-face node moves with the nut (nothing retained).
 
 The steps: one ``*STATIC`` step per retained DOF, that DOF moved by 1 (m or rad) with every other
 retained DOF held (the columns of the reduced stiffness are the reactions RF), then one step with
@@ -67,7 +69,7 @@ def grid_lines(half, step, extra):
     return lines[np.concatenate([[True], np.diff(lines) > 1e-6])]
 
 
-def build(step=0.025, layers=2, variant="plate"):
+def build(step=0.025, layers=1, variant="plate"):
     """Nodes, elements, rigid footprints and retained points of ``variant`` (:data:`VARIANTS`)."""
     thick, ribs = VARIANTS[variant]
     ifs = interfaces()
@@ -136,7 +138,9 @@ def build(step=0.025, layers=2, variant="plate"):
             continue
         nb = tuple(at(*p, zt) for p in [(line_after(x, xs, -1), y), (line_after(x, xs, 1), y),
                                          (x, line_after(y, ys, -1)), (x, line_after(y, ys, 1))])
-        points[name] = (node, nb)
+        # the nodes under the point and under each neighbour, on the underside
+        points[name] = (node, nb + tuple(at(*coord[:2], -zt) for coord in
+                                         [(x, y)] + [nodes[q] for q in nb]))
     return nodes, elements, rigid, points, extra_nodes
 
 
@@ -186,7 +190,7 @@ def retained_dofs(rigid, points):
     return dofs
 
 
-def write(out_dir: Path, step=0.025, layers=2, variant="plate"):
+def write(out_dir: Path, step=0.025, layers=1, variant="plate"):
     nodes, elements, rigid, points, _ = build(step, layers, variant)
     dofs = retained_dofs(rigid, points)
     retained_nodes = sorted({n for n, _ in dofs})
@@ -257,7 +261,8 @@ def write(out_dir: Path, step=0.025, layers=2, variant="plate"):
     T += ["", "[interfaces]"] + [f"{n} = {REF0 + k}" for k, n in enumerate(names)]
     for name, (node, nb) in points.items():
         T += ["", f"[points.{name}]", f"node = {node}"]
-        T += [f"neighbours = {list(nb)}"] if nb else ['rigid_to = "nut"']
+        T += [f"neighbours = {list(nb[:4])}", f"below = {nb[4]}",
+              f"neighbours_below = {list(nb[5:])}"] if nb else ['rigid_to = "nut"']
     (out_dir / f"{variant}.toml").write_text("\n".join(T) + "\n")
     return dofs, points
 
@@ -265,7 +270,7 @@ def write(out_dir: Path, step=0.025, layers=2, variant="plate"):
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--nx-el", type=float, default=25.0, help="grid step (mm)")
-    ap.add_argument("--layers", type=int, default=2, help="elements through the thickness")
+    ap.add_argument("--layers", type=int, default=1, help="elements through the thickness")
     ap.add_argument("--variant", choices=sorted(VARIANTS), default="plate")
     ap.add_argument("--out", default=str(Path(__file__).parent))
     a = ap.parse_args()

@@ -19,7 +19,13 @@ at the table centre, X the travel, Z up, as a machine file's positions):
   small rotation ``θ`` that best fits their translations relative to the point in least squares,
   ``u_i - u_P ≈ θ × (p_i - p_P)`` (for four neighbours at ±h along X and Y on a flat top: the
   central differences ``θx = ∂uz/∂y``, ``θy = -∂uz/∂x``, ``θz = ½(∂uy/∂x - ∂ux/∂y)``, error
-  O(h²)).
+  O(h²)). Those are the rotations of the top face (its slope: what a level standing there
+  tilts by). With a retained node **below** the point on the underside as well, roll and pitch
+  are instead the rotation of the material fibre through the point, ``θx = -(u_y,top -
+  u_y,below)/t``, ``θy = (u_x,top - u_x,below)/t`` (``t`` the distance between the two), which is
+  what a shell model's rotations are (diffguide's own plate); the two differ by the transverse
+  shear strain at the point. With the nodes under the neighbours too, yaw is the mid-surface's
+  in-plane rotation (the mean of top and underside), as a shell's.
 
 :func:`table_from_reduced` condenses every DOF other than the interfaces' out exactly,
 
@@ -132,12 +138,19 @@ class RetainedPoint(eqx.Module):
         rigid_to: the index of the interface (in ``interfaces``) whose rigid tie holds the point
             (a point on a carriage or nut footprint): it moves with that interface's reference
             node, and only its coordinates are needed (its DOF need not be retained).
+        below: a retained node (DOF 1-3) straight under the point on the underside, or None:
+            roll and pitch then come from the fibre between the two (module docstring), yaw
+            from the neighbours. neighbours_below: the nodes under the neighbours, in their
+            order (needs ``below``): yaw from the mid-surface (the mean of each top node and
+            the one below it), as a shell's in-plane rotation, instead of the top face's.
     """
 
     name: str = eqx.field(static=True)
     node: int = eqx.field(static=True)
     neighbours: tuple[int, ...] = eqx.field(static=True, default=(), converter=tuple)
     rigid_to: int | None = eqx.field(static=True, default=None)
+    below: int | None = eqx.field(static=True, default=None)
+    neighbours_below: tuple[int, ...] = eqx.field(static=True, default=(), converter=tuple)
 
 
 def _coords(coords: Mapping[int, Sequence[float]], node: int, what: str, source: str):
@@ -167,6 +180,9 @@ def _point_rows(rm, coords, pt: RetainedPoint, interfaces) -> np.ndarray:
     for k in range(3):
         S[k, rm.index(pt.node, k + 1, what)] = 1.0
     if not pt.neighbours:
+        if pt.below is not None:
+            raise ValueError(f"{rm.source}: {what}: a node below needs neighbours too (they "
+                             "give the yaw)")
         for k in range(3):
             S[3 + k, rm.index(pt.node, k + 4, what + " (its rotations; or give neighbours)")] = 1
         return S
@@ -184,7 +200,46 @@ def _point_rows(rm, coords, pt: RetainedPoint, interfaces) -> np.ndarray:
             col = G[:, 3 * j + k]
             S[3:, rm.index(q, k + 1, what + " (a neighbour)")] += col
             S[3:, rm.index(pt.node, k + 1, what)] -= col
+    if pt.below is not None:
+        S[3:5] = _fibre_rows(rm, coords, pt, p0, what)
+    if pt.neighbours_below:
+        S[5] = _mid_surface_yaw(rm, coords, pt, G[2], what)
     return S
+
+
+def _mid_surface_yaw(rm, coords, pt: RetainedPoint, g, what) -> np.ndarray:
+    """The row of ``θz`` from the mid-surface: the least-squares row ``g`` of the top-face
+    neighbours applied to the mean of each top node and the node below it."""
+    if pt.below is None or len(pt.neighbours_below) != len(pt.neighbours):
+        raise ValueError(f"{rm.source}: {what}: neighbours_below needs below, and one node per "
+                         f"neighbour ({len(pt.neighbours)})")
+    row = np.zeros(len(rm.dofs))
+    for top, low in zip((pt.node, *pt.neighbours), (pt.below, *pt.neighbours_below)):
+        d = _coords(coords, low, what + " (below)", rm.source) - _coords(coords, top, what,
+                                                                          rm.source)
+        if not (d[2] < 0 and np.hypot(d[0], d[1]) <= 1e-6 * abs(d[2])):
+            raise ValueError(f"{rm.source}: {what}: node {low} is not straight under node "
+                             f"{top}: offset {np.round(d * 1e3, 6).tolist()} mm")
+    for j, (q, qb) in enumerate(zip(pt.neighbours, pt.neighbours_below)):
+        for k in range(3):
+            for node, sign in ((q, 0.5), (qb, 0.5), (pt.node, -0.5), (pt.below, -0.5)):
+                row[rm.index(node, k + 1, what + " (mid-surface yaw)")] += sign * g[3 * j + k]
+    return row
+
+
+def _fibre_rows(rm, coords, pt: RetainedPoint, p0, what) -> np.ndarray:
+    """Rows of ``(θx, θy)``: the rotation of the fibre from the point to the node ``below``
+    (``u_below - u_P = θ × d``, ``d = p_below - p_P`` straight down)."""
+    d = _coords(coords, pt.below, what + " (below)", rm.source) - p0
+    if not (d[2] < 0 and np.hypot(d[0], d[1]) <= 1e-6 * abs(d[2])):
+        raise ValueError(f"{rm.source}: {what}: node {pt.below} (below) is not straight under "
+                         f"node {pt.node}: offset {np.round(d * 1e3, 6).tolist()} mm")
+    rows = np.zeros((2, len(rm.dofs)))
+    # (θ × d)_x = θy dz, (θ × d)_y = -θx dz
+    for k, (row, sign) in enumerate(((1, -1.0), (0, 1.0))):  # θx from uy, θy from ux
+        rows[k, rm.index(pt.below, row + 1, what + " (below)")] += sign / d[2]
+        rows[k, rm.index(pt.node, row + 1, what)] -= sign / d[2]
+    return rows
 
 
 def check_rigid_modes(rm: ReducedMatrix, coords: Mapping[int, Sequence[float]],

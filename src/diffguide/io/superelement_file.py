@@ -21,6 +21,10 @@
     [points.P1]                   # every control point of the machine
     node = 24269
     neighbours = [24267, 24271, 24083, 24455]   # or: rigid_to = "nut"; or neither (DOF 4-6)
+    below = 20123                 # optional: the node under it on the underside (roll, pitch
+                                  # of the fibre through the point, as a shell's rotation)
+    neighbours_below = [20121, 20125, 19935, 20307]   # optional, with below: the nodes under
+                                  # the neighbours (yaw of the mid-surface, as a shell's)
 
 Every error names the file and the key.
 """
@@ -113,17 +117,26 @@ def load_imported_table(path: str | os.PathLike) -> ImportedTable:
         key = f"points.{name}"
         if not isinstance(p, dict):
             _bad(path, key, "a table with node (and neighbours or rigid_to)")
-        extra = set(p) - {"node", "neighbours", "rigid_to"}
+        allowed = ("node", "neighbours", "rigid_to", "below", "neighbours_below")
+        extra = set(p) - set(allowed)
         if extra:
-            _bad(path, key, f"unknown keys {sorted(extra)}; allowed: node, neighbours, rigid_to")
+            _bad(path, key, f"unknown keys {sorted(extra)}; allowed: {', '.join(allowed)}")
         rigid_to = p.get("rigid_to")
         if rigid_to is not None:
             order = list(interfaces)
             if rigid_to not in order:
                 _bad(path, f"{key}.rigid_to", f"{rigid_to!r} is not one of {order}")
         nb = [_node(path, f"{key}.neighbours", n) for n in p.get("neighbours", [])]
+        below = _node(path, f"{key}.below", p["below"]) if "below" in p else None
+        if below is not None and not nb:
+            _bad(path, f"{key}.below", "needs neighbours too (they give the yaw)")
+        nbb = [_node(path, f"{key}.neighbours_below", n) for n in p.get("neighbours_below", [])]
+        if nbb and (below is None or len(nbb) != len(nb)):
+            _bad(path, f"{key}.neighbours_below", f"needs below, and one node per neighbour "
+                 f"({len(nb)})")
         points[name] = (RetainedPoint(name=name, node=_node(path, f"{key}.node", p.get("node")),
-                                      neighbours=tuple(nb)), rigid_to)
+                                      neighbours=tuple(nb), below=below,
+                                      neighbours_below=tuple(nbb)), rigid_to)
     weight = None
     if "mass" in cfg or "cog" in cfg:
         cog = cfg.get("cog")
