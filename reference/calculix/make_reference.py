@@ -42,6 +42,7 @@ Run (needs ``ccx`` on the PATH and numpy/scipy; about a minute per machine on 2 
 
     python reference/calculix/make_reference.py            # all machines and cases
     python reference/calculix/make_reference.py --study    # + mesh and table-density studies
+    python reference/calculix/make_reference.py --rib-study --workers 1   # the ribbed mesh study
 """
 
 import argparse
@@ -781,6 +782,49 @@ def study(workers: int, out: Path) -> None:
     print(text)
 
 
+#: the ribbed table's mesh study: (label, mesh, cases); the finest is last.
+RIB_STUDY_MESHES = [
+    (
+        "40x20, 1 + 2 layers",
+        {"nx": 40, "ny": 20, "layers": 1, "rib_layers": 2},
+        ("variant3", "variant2"),
+    ),
+    ("80x40, 1 + 2 layers", {"nx": 80, "ny": 40, "layers": 1, "rib_layers": 2}, ("variant3",)),
+    (
+        "40x20, 2 + 2 layers",
+        {"nx": 40, "ny": 20, "layers": 2, "rib_layers": 2},
+        ("variant3", "variant2"),
+    ),
+    (
+        "40x20, 2 + 4 layers",
+        {"nx": 40, "ny": 20, "layers": 2, "rib_layers": 4},
+        ("variant3", "variant2"),
+    ),
+]
+
+
+def rib_study(workers: int) -> None:
+    """Mesh convergence of the ribbed machine (plate + rib brick layers, in-plane grid): the
+    largest change from the finest model per quantity (:func:`relative_change`), printed."""
+    mach = read_machine(HERE / "machines" / "ribbed.toml")
+    law = element_law(mach)
+    table = spring_table(law, TABLE_RATIO)
+    results = {}
+    for label, spec, cases in RIB_STUDY_MESHES:
+        mesh = mesh_for(mach, {"element": "C3D20R", **spec})
+        for case in cases:
+            t0 = datetime.datetime.now()
+            rails = CASES[case]
+            results[label, case], _ = sweep(mach, mesh, law, rails, STUDY_POSITIONS, table, workers)
+            dt = (datetime.datetime.now() - t0).total_seconds()
+            print(f"{label}, {case}: {len(mesh['coords'])} nodes, {dt:.0f} s", flush=True)
+    best = RIB_STUDY_MESHES[-1][0]
+    print("| mesh | case | " + " | ".join(QUANTITIES) + " |\n" + "|---" * 8 + "|")
+    for (label, case), errors in results.items():
+        ch = relative_change(errors, results[best, case])
+        print(f"| {label} | {case} | " + " | ".join(f"{v:.2f} %" for v in ch) + " |")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--machines", nargs="*", default=list(MACHINES))
@@ -788,8 +832,12 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--study", action="store_true", help="only the mesh and table studies")
+    ap.add_argument("--rib-study", action="store_true", help="only the ribbed mesh study")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.rib_study:
+        rib_study(args.workers)
+        return
     if args.study:
         study(args.workers, HERE)
         return
