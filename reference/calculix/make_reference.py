@@ -12,6 +12,10 @@ The deck (one static, geometrically nonlinear step per position):
 * table: 4-node (``S4``, default) or 8-node (``S8R``) shells on a structured grid with lines at
   every footprint edge and centre and at the control points; ccx expands them to C3D8I / C3D20R
   bricks through the thickness. Mid-surface at z = 0, top at +t/2.
+* ribs (``[[ribs]]`` of the TOML, as diffguide reads them: axis, position, width, depth below
+  the plate, the whole table long): bricks of the same material under the plate, on the plate's
+  underside nodes (grid lines at the rib edges), ``rib_layers`` through the depth; a rib under a
+  carriage or nut footprint is refused.
 * carriages: rigid bodies (``*RIGID BODY``) whose reference node is the centre of the carriage's
   top face (x_c, y_rail, -t/2), tied to every table node in the footprint and to one node at each
   rolling element's contact point (x_c + ξ, y_rail ± y_r, -t/2 + z_r).
@@ -38,6 +42,7 @@ Run (needs ``ccx`` on the PATH and numpy/scipy; about a minute per machine on 2 
 
     python reference/calculix/make_reference.py            # all machines and cases
     python reference/calculix/make_reference.py --study    # + mesh and table-density studies
+    python reference/calculix/make_reference.py --rib-study --workers 1   # the ribbed mesh study
 """
 
 import argparse
@@ -102,6 +107,15 @@ def read_machine(path: Path) -> dict:
         "gravity": c["machine"]["gravity_m_s2"],
         "stroke": c["machine"]["stroke_mm"] * mm,
         "points": {name: (xy[0] * mm, xy[1] * mm) for name, xy in c["points"].items()},
+        "ribs": [
+            {
+                "axis": r.get("axis", "x"),
+                "position": r.get("position_mm", 0.0) * mm,
+                "width": r.get("width_mm", 20.0) * mm,
+                "depth": r.get("depth_mm", 60.0) * mm,
+            }
+            for r in c.get("ribs", [])
+        ],
     }
 
 
@@ -237,6 +251,18 @@ MACHINES = {
         # one brick layer is 3 % of a range off the two-layer model at P4 (EBX) in variant 3
         "mesh": {"variant3": {"nx": 40, "ny": 20, "element": "C3D20R", "layers": 2}},
     },
+    # majda2012 on the superelement example's ribbed table (30 mm plate, two transverse ribs);
+    # a second brick layer in the plate moves EAX/EBX/EZX by up to 1 % of a range, the rib's
+    # 2 -> 4 layers by <= 0.06 % (README): two and two
+    "ribbed": {
+        "toml": "ribbed.toml",
+        "cases": ["variant1", "variant2", "variant3"],
+        "positions": {"default": list(np.linspace(-0.35, 0.35, 9))},
+        "mesh": {
+            c: {"nx": 40, "ny": 20, "element": "C3D20R", "layers": 2, "rib_layers": 2}
+            for c in ("variant1", "variant2", "variant3")
+        },
+    },
 }
 
 # ---------------------------------------------------------------------------------------------
@@ -265,14 +291,55 @@ def patches(mach: dict) -> list[dict]:
     return out
 
 
-def make_mesh(mach: dict, nx: int, ny: int, element: str = "C3D20R", layers: int = 1) -> dict:
+def rib_box(rib: dict, mach: dict) -> tuple[float, float, float, float]:
+    """Plan-view extent (x0, x1, y0, y1) of a rib (m): the whole table along its axis."""
+    half = rib["width"] / 2
+    L, W = mach["length"] / 2, mach["width"] / 2
+    if rib["axis"] == "x":
+        return -L, L, rib["position"] - half, rib["position"] + half
+    return rib["position"] - half, rib["position"] + half, -W, W
+
+
+def check_ribs_clear(mach: dict) -> None:
+    """Refuse a rib that runs under a carriage or nut footprint (they are bolted there)."""
+    for rib in mach["ribs"]:
+        x0, x1, y0, y1 = rib_box(rib, mach)
+        for p in patches(mach):
+            if x0 < p["x"] + p["hx"] - 1e-9 and p["x"] - p["hx"] + 1e-9 < x1:
+                if y0 < p["y"] + p["hy"] - 1e-9 and p["y"] - p["hy"] + 1e-9 < y1:
+                    raise ValueError(f"rib {rib} runs under the footprint at {p}")
+
+
+def rib_z_lines(mach: dict, layers: int) -> np.ndarray:
+    """z (m) of the brick layers below the plate's underside, down to the deepest rib."""
+    bottom = -mach["thickness"] / 2
+    zs = [np.linspace(bottom - r["depth"], bottom, layers + 1) for r in mach["ribs"]]
+    return np.unique(np.round(np.concatenate(zs), 12))[:-1] if zs else np.zeros(0)
+
+
+def in_rib(mach: dict, x0, x1, y0, y1, z0) -> bool:
+    """Whether the cell [x0, x1] x [y0, y1] with bottom z0, below the plate, is rib material."""
+    for rib in mach["ribs"]:
+        bx0, bx1, by0, by1 = rib_box(rib, mach)
+        inside = bx0 - 1e-9 <= x0 and x1 <= bx1 + 1e-9 and by0 - 1e-9 <= y0 and y1 <= by1 + 1e-9
+        if inside and z0 >= -mach["thickness"] / 2 - rib["depth"] - 1e-9:
+            return True
+    return False
+
+
+def make_mesh(
+    mach: dict, nx: int, ny: int, element: str = "C3D20R", layers: int = 1, rib_layers: int = 2
+) -> dict:
     """Structured brick mesh of the plate, grid lines at every footprint edge and centre and at
-    the control points, ``layers`` elements through the thickness.
+    the control points, ``layers`` elements through the thickness; ribs (``mach["ribs"]``) as
+    ``rib_layers`` bricks through their depth under the plate, on the plate's underside nodes
+    (grid lines at the rib edges).
 
     ``C3D20R``: 20-node bricks (what ccx makes of ``S8R`` shells: one layer of C3D20R), nodes at
     the corners and edge midpoints of a half-step grid. ``C3D8I``: 8-node incompatible-mode bricks
     (what ccx makes of ``S4`` shells).
     """
+    check_ribs_clear(mach)
     lx, ly = [], []
     for p in patches(mach):
         lx += [p["x"] - p["hx"], p["x"], p["x"] + p["hx"]]
@@ -280,37 +347,39 @@ def make_mesh(mach: dict, nx: int, ny: int, element: str = "C3D20R", layers: int
     for x, y in mach["points"].values():
         lx.append(x)
         ly.append(y)
+    for rib in mach["ribs"]:
+        x0, x1, y0, y1 = rib_box(rib, mach)
+        lx += [x0, x1]
+        ly += [y0, y1]
     L, W, t = mach["length"], mach["width"], mach["thickness"]
     xs = grid_lines(-L / 2, L / 2, nx, lx)
     ys = grid_lines(-W / 2, W / 2, ny, ly)
-    zs = np.linspace(-t / 2, t / 2, layers + 1)
+    zs = np.concatenate([rib_z_lines(mach, rib_layers), np.linspace(-t / 2, t / 2, layers + 1)])
     quad = element == "C3D20R"
 
     def refine(v):
         return np.sort(np.concatenate([v, 0.5 * (v[1:] + v[:-1])])) if quad else v
 
     X, Y, Z = refine(xs), refine(ys), refine(zs)
-    ids, coords = {}, []
-    for i, x in enumerate(X):
-        for j, y in enumerate(Y):
-            for k, z in enumerate(Z):
-                if quad and (i % 2) + (j % 2) + (k % 2) > 1:
-                    continue  # serendipity: no face or body centres
-                ids[(i, j, k)] = len(coords) + 1
-                coords.append((x, y, z))
     s = 2 if quad else 1
-    elems = []
+    cells = []
     for i in range(0, len(X) - 1, s):
         for j in range(0, len(Y) - 1, s):
             for k in range(0, len(Z) - 1, s):
+                if Z[k] < -t / 2 - 1e-12 and not in_rib(mach, X[i], X[i + s], Y[j], Y[j + s], Z[k]):
+                    continue  # below the plate, outside every rib
                 c = [(i, j), (i + s, j), (i + s, j + s), (i, j + s)]
                 conn = [(a, b, k) for a, b in c] + [(a, b, k + s) for a, b in c]
                 if quad:
                     m = [(i + 1, j), (i + 2, j + 1), (i + 1, j + 2), (i, j + 1)]
                     conn += [(a, b, k) for a, b in m] + [(a, b, k + 2) for a, b in m]
                     conn += [(a, b, k + 1) for a, b in c]
-                elems.append([ids[n] for n in conn])
-    return {"xs": xs, "ys": ys, "coords": np.array(coords), "elements": elems, "type": element}
+                cells.append(conn)
+    used = sorted({n for conn in cells for n in conn}, key=lambda n: (n[0], n[1], n[2]))
+    ids = {n: q + 1 for q, n in enumerate(used)}
+    coords = np.array([(X[i], Y[j], Z[k]) for i, j, k in used])
+    elems = [[ids[n] for n in conn] for conn in cells]
+    return {"xs": xs, "ys": ys, "coords": coords, "elements": elems, "type": element}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -654,7 +723,8 @@ STUDY_POSITIONS = [-0.35, -0.175, 0.175, 0.35]
 
 
 def mesh_for(mach, spec):
-    return make_mesh(mach, spec["nx"], spec["ny"], spec["element"], spec["layers"])
+    args = (spec["nx"], spec["ny"], spec["element"], spec["layers"], spec.get("rib_layers", 2))
+    return make_mesh(mach, *args)
 
 
 def relative_change(errors, best):
@@ -712,6 +782,52 @@ def study(workers: int, out: Path) -> None:
     print(text)
 
 
+#: the ribbed table's mesh study: (label, mesh, cases); the finest is last.
+RIB_STUDY_MESHES = [
+    (
+        "40x20, 1 + 2 layers",
+        {"nx": 40, "ny": 20, "layers": 1, "rib_layers": 2},
+        ("variant3", "variant2"),
+    ),
+    ("80x40, 1 + 2 layers", {"nx": 80, "ny": 40, "layers": 1, "rib_layers": 2}, ("variant3",)),
+    (
+        "40x20, 2 + 2 layers",
+        {"nx": 40, "ny": 20, "layers": 2, "rib_layers": 2},
+        ("variant3", "variant2"),
+    ),
+    (
+        "40x20, 2 + 4 layers",
+        {"nx": 40, "ny": 20, "layers": 2, "rib_layers": 4},
+        ("variant3", "variant2"),
+    ),
+]
+
+
+def rib_study(workers: int) -> None:
+    """Mesh convergence of the ribbed machine (plate + rib brick layers, in-plane grid): the
+    largest change from the finest model per quantity (:func:`relative_change`), printed."""
+    mach = read_machine(HERE / "machines" / "ribbed.toml")
+    law = element_law(mach)
+    table = spring_table(law, TABLE_RATIO)
+    results = {}
+    for label, spec, cases in RIB_STUDY_MESHES:
+        mesh = mesh_for(mach, {"element": "C3D20R", **spec})
+        for case in cases:
+            t0 = datetime.datetime.now()
+            rails = CASES[case]
+            results[label, case], _ = sweep(mach, mesh, law, rails, STUDY_POSITIONS, table, workers)
+            dt = (datetime.datetime.now() - t0).total_seconds()
+            print(f"{label}, {case}: {len(mesh['coords'])} nodes, {dt:.0f} s", flush=True)
+    best = RIB_STUDY_MESHES[-1][0]
+    print("| mesh | case | " + " | ".join(QUANTITIES) + " |\n" + "|---" * 8 + "|")
+    for (label, case), errors in results.items():
+        ch = relative_change(errors, results[best, case])
+        print(f"| {label} | {case} | " + " | ".join(f"{v:.2f} %" for v in ch) + " |")
+    a, b = (results[RIB_STUDY_MESHES[k][0], "variant3"] for k in (0, 1))
+    ch = relative_change(a, b)
+    print("| in-plane: 40x20 vs 80x40 | variant3 | " + " | ".join(f"{v:.2f} %" for v in ch) + " |")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--machines", nargs="*", default=list(MACHINES))
@@ -719,8 +835,12 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--study", action="store_true", help="only the mesh and table studies")
+    ap.add_argument("--rib-study", action="store_true", help="only the ribbed mesh study")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.rib_study:
+        rib_study(args.workers)
+        return
     if args.study:
         study(args.workers, HERE)
         return
@@ -734,7 +854,10 @@ def main(argv=None):
     }
     meta_path = args.out / "reference.json"
     if meta_path.exists():
-        meta["machines"] = json.loads(meta_path.read_text()).get("machines", {})
+        old = json.loads(meta_path.read_text())
+        meta["machines"] = old.get("machines", {})
+        if set(args.machines) != set(MACHINES):  # a partial run: the file's date stays
+            meta["date"] = old.get("date", meta["date"])
     for mname in args.machines:
         spec = MACHINES[mname]
         toml = HERE / "machines" / spec["toml"]
@@ -745,6 +868,7 @@ def main(argv=None):
         shutil.copy(toml, args.out / f"{mname}.toml")
         mmeta = meta["machines"].setdefault(mname, {"cases": {}})
         mmeta.update(
+            date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             toml=f"{mname}.toml",
             preload_force_N=mach["preload_force"],
             preload_approach_um=law["g0"] * 1e6,
