@@ -14,18 +14,19 @@ error's range at each point, ranges below 15 % of the case's largest range of th
 that floor):
 
 - the table imported from CalculiX (``data/examples/superelement/ribbed.*``: a separate brick
-  model of the same table, 25 mm grid, reduced to its carriage, nut and point nodes), machine
-  file ``ribbed_imported.toml``: within 2 %. Measured worst: variant 1 0.21 % (ECX at P4),
-  variant 2 1.43 % (EAX at P2), variant 3 1.61 % (EAX at P2).
+  model of the same table, 25 mm grid, one layer in the plate, reduced to its carriage, nut and
+  point nodes, the points' rotations from the fibre and the mid-surface), machine file
+  ``ribbed_imported.toml``: within 2 %. Measured worst: variant 1 0.04 % (EYX at P1), variant 2
+  0.71 % (EZX at P2), variant 3 0.79 % (EBX at P4). (With the rotations from the top face's
+  slope and two plate layers, before: 0.21, 1.43, 1.61 %, roll EAX at P2.)
 - diffguide's own ribbed plate (MITC4 shells on Timoshenko beam ribs, 40 x 20 mesh), machine
   file ``ribbed.toml``. Measured worst: variant 1 0.32 % (EZX at P2), variant 2 1.97 % (EAX at
   P3), variant 3 1.96 % (EAX at P2): inside 2 % too, but with 0.03 % to spare, less than the
   reference's own mesh uncertainty (in-plane refinement moves EAX by 0.35 % of a range,
   ``reference/calculix/README.md``); asserted at 2.5 %.
 
-The two deviate from the reference in opposite directions (EAX at P2 in variant 3 at x = 350 mm:
-+0.25 µrad imported, -0.30 µrad native), which is why they differ from each other by up to 3.6 %
-(``test_superelement_machine.py``). Without its ribs the native plate is 87 % (variant 2) and
+The native plate's roll at the corners is the larger part of their mutual difference (up to
+2.6 %, ``test_superelement_machine.py``). Without its ribs the native plate is 87 % (variant 2) and
 105 % (variant 3) of a range off: the reference sees the ribs.
 """
 

@@ -10,8 +10,8 @@ The plate (``thin``: 20 mm thick; ``ribbed``: 30 mm on two transverse ribs 20 x 
 x = -/+300 mm): 1000 x 500 x 50 mm, cast iron (E 110 GPa, nu 0.26, 7200 kg/m3), C3D20R bricks on a
 grid with lines every ``--nx-el`` mm plus the footprint edges and the control points, ``--layers``
 elements through the thickness (one by default, as CalculiX's model of the whole machine in
-``reference/calculix``; ribs: two through their depth). Units: SI (m, N, Pa, kg/m3). Origin: the table centre, the plate
-mid-surface at z = 0 (top face z = +25 mm, underside -25 mm).
+``reference/calculix``; ribs: two through their depth). Units: SI (m, N, Pa, kg/m3). Origin:
+the table centre, the plate mid-surface at z = 0 (top face z = +25 mm, underside -25 mm).
 
 Retained nodes (named for diffguide in the description file, ``plate.toml``):
 

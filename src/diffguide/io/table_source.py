@@ -148,6 +148,8 @@ def describe_source(cfg: dict) -> list[str]:
     for name, (pt, rigid_to) in data.points.items():
         how = (f"rigid to {rigid_to}" if rigid_to else
                f"{len(pt.neighbours)} neighbours" if pt.neighbours else "own rotations")
+        if pt.below is not None:
+            how += (", fibre below" + (", mid-surface yaw" if pt.neighbours_below else ""))
         pts.append(f"{name} = node {pt.node} ({how})")
     lines.append(f"# points: {', '.join(pts)}  # {src['given']}")
     w = data.weight
