@@ -360,3 +360,25 @@ def test_wide_bounds_recentre_the_mesh_to_the_users_bound():
     # the command line takes such bounds (its parse, then the design's check)
     name, b = parse_vary("carriage_spacing=200:400")
     assert check_bounds(SPEC, [name], [b]) == (pytest.approx((0.2, 0.4)),)
+
+
+def test_rail_spacing_recentres_past_a_point_line():
+    """Rail spacing over 300..420 mm: the first mesh stops at 348 mm (the footprint's edge meets
+    the grid line of the points at y = ±200 mm), the roll difference falls as the rails move
+    apart, so the mesh is re-centred (twice: the footprint then straddles that line) to the
+    user's bound; the objective there is that of the machine rebuilt with ``rail_y = ±210 mm``
+    by the ordinary sweep on the same rails."""
+    res = design(SPEC, X, variables=("rail_spacing",), bounds=[(0.30, 0.42)], n_samples=N,
+                 check_samples=0, chunk_size=N)
+    assert res.stages[0]["bounds"][0][1] < 0.35 and res.stages[0]["recentred"]
+    assert res.optimum[0] == pytest.approx(0.42, abs=1e-9)
+    assert res.active_bounds == (("rail_spacing", "upper"),)
+    assert res.stages[-1]["rail_y"] == pytest.approx((-0.21, 0.21))
+    knots = design_knots(SPEC, X, 0.2)
+    rails = sample_rails(0, N, GaussianRailModel(1e-6, 0.2), knots=knots)
+    g = dataclasses.replace(SPEC.guideway, rail_y=(-0.21, 0.21))
+    moved = build_machine(eqx.tree_at(lambda s: s.guideway, SPEC, g))
+    plain = np.mean(measure_values(batched_sweep(moved, rails, X, chunk_size=N),
+                                   "roll_difference"))
+    assert res.after.value == pytest.approx(plain, rel=1e-9)
+    assert res.after.value < res.before.value
