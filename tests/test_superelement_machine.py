@@ -152,11 +152,10 @@ def test_missing_point_and_misplaced_node_are_named():
         imported_table(spec, data.matrix, data.coords, bad, points)
 
 
-@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not installed")
 def test_ccx_rerun_coarse_deck(tmp_path):
-    """Re-run the deck with ccx (a coarse mesh: 100 mm, one layer; ~40 s): its reduced matrix
-    is free-floating and its self-weight is the plate's."""
+    """Re-run the deck with ccx (a coarse mesh: 100 mm, one layer; ~40 s; ``.ci/run`` installs
+    CalculiX): its reduced matrix is free-floating and its self-weight is the plate's."""
     import runpy
 
     mk = runpy.run_path(str(EXAMPLE / "make_plate_deck.py"), run_name="deck")
