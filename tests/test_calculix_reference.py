@@ -88,6 +88,19 @@ def deviation(got, ref):
     return np.abs(got - ref).max(axis=0) / allowed, rng
 
 
+def worst(machine, case_spec):
+    """(largest deviation in % of the range or floor, where) of ``machine`` in the stored case
+    ``case_spec`` (an entry of ``reference.json``'s ``cases``), by :func:`deviation`."""
+    positions, points, ref = read_reference(DATA / case_spec["csv"])
+    assert tuple(points) == machine.point_names
+    je = dg.joint_errors(machine, rails_from(case_spec["rails"]), positions)
+    assert bool(je.converged.all())
+    ratio, rng = deviation(je.user_units(), ref)
+    p, q = np.unravel_index(np.argmax(ratio), ratio.shape)
+    pct = float(ratio.max()) * 100 * REL
+    return pct, f"{NAMES[q]} at {points[p]}: {pct:.2f} % (range {rng[p, q]:.3g})"
+
+
 @pytest.mark.parametrize("machine_name, case", CASES)
 def test_joint_errors_agree_with_calculix(machines, machine_name, case):
     spec = META["machines"][machine_name]["cases"][case]

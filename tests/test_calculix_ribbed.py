@@ -34,9 +34,8 @@ import dataclasses
 import json
 import tomllib
 
-import numpy as np
 import pytest
-from test_calculix_reference import DATA, NAMES, REL, deviation, rails_from, read_reference
+from test_calculix_reference import DATA, REL, worst
 
 import diffguide as dg
 
@@ -47,16 +46,8 @@ NATIVE_REL = 0.025
 
 
 def _worst(machine, case):
-    """(largest deviation in % of the range or floor, where) of ``machine`` in ``case``."""
-    spec = META["cases"][case]
-    positions, points, ref = read_reference(DATA / spec["csv"])
-    assert tuple(points) == machine.point_names
-    je = dg.joint_errors(machine, rails_from(spec["rails"]), positions)
-    assert bool(je.converged.all())
-    ratio, rng = deviation(je.user_units(), ref)
-    p, q = np.unravel_index(np.argmax(ratio), ratio.shape)
-    pct = float(ratio.max()) * 100 * REL
-    return pct, f"{NAMES[q]} at {points[p]}: {pct:.2f} % (range {rng[p, q]:.3g})"
+    """:func:`test_calculix_reference.worst` of ``machine`` in the ribbed ``case``."""
+    return worst(machine, META["cases"][case])
 
 
 @pytest.fixture(scope="module")

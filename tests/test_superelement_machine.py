@@ -99,19 +99,11 @@ def test_imported_plate_agrees_with_the_full_calculix_machine(machines, case):
     grid), where diffguide's native 40 x 20 plate is within 0.09-0.40 %. (With the rotations
     from the top face's slope instead of the fibre, before the points kept the nodes below them:
     up to 1.5 %, roll and yaw at the corners.)"""
-    from test_calculix_reference import DATA, META, NAMES, rails_from, read_reference
-    from test_calculix_reference import deviation as reference_deviation
+    from test_calculix_reference import META, REL, worst
 
-    spec = META["machines"]["majda2012"]["cases"][case]
-    positions, points, ref = read_reference(DATA / spec["csv"])
     mi, _ = machines
-    assert tuple(points) == mi.point_names
-    je = dg.joint_errors(mi, rails_from(spec["rails"]), positions)
-    assert bool(je.converged.all())
-    ratio, rng = reference_deviation(je.user_units(), ref)
-    worst = np.unravel_index(np.argmax(ratio), ratio.shape)
-    assert ratio.max() <= 1.0, (f"{case}: {NAMES[worst[1]]} at {points[worst[0]]}: "
-                                f"{ratio[worst] * 2:.2f} % of its range {rng[worst]:.3g}")
+    pct, where = worst(mi, META["machines"]["majda2012"]["cases"][case])
+    assert pct <= 100 * REL, f"{case}: {where}"
 
 
 def test_imported_table_statics(machines):

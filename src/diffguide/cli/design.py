@@ -116,20 +116,17 @@ def _check(args) -> None:
 def measurement_plan(args, cfg, positions):
     """The :class:`~diffguide.studies.design_plan.MeasurementPlan` of ``--plan``,
     ``--plan-runs``, ``--work-point``/``--work-reads``, ``--rail-rms-um`` at ``positions`` (m)."""
-    from ..inverse.instruments import bundled_layout_mm, check_on_table
+    from ..inverse.instruments import bundled_layout_mm
     from ..io.plan_files import read_placement_rows
     from ..studies.design_plan import MeasurementPlan
+    from .plan import parse_work_point
 
     table = (cfg["table"]["length_mm"], cfg["table"]["width_mm"])
     rows = bundled_layout_mm(*table) if args.plan == "bundled" else read_placement_rows(
         args.plan, table)
     work = None
     if args.work_point is not None:
-        try:
-            wx, wy = (float(v) for v in args.work_point.split(","))
-        except ValueError:
-            raise ValueError(f"--work-point must be X,Y (mm), got {args.work_point!r}") from None
-        check_on_table("work point", wx, wy, table, "--work-point")
+        wx, wy = parse_work_point(args.work_point, table)
         wq = tuple(q.strip().upper() for q in args.work_reads.split(","))
         work = (wx * 1e-3, wy * 1e-3, wq)
     try:

@@ -235,18 +235,24 @@ def _start_and_compare(args, cfg, sites):
     return start, compare
 
 
+def parse_work_point(text: str, table_mm) -> tuple[float, float]:
+    """``--work-point X,Y`` (mm), checked to lie on the ``table_mm = (length, width)`` top."""
+    from ..inverse.instruments import check_on_table
+
+    try:
+        wx, wy = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--work-point must be X,Y (mm), got {text!r}") from None
+    check_on_table("work point", wx, wy, table_mm, "--work-point")
+    return wx, wy
+
+
 def _work_point(args, cfg, sites):
     """``("WORK", quantities)`` from ``--work-point``/``--work-reads`` (the site added to
     ``sites``), or None."""
-    from ..inverse.instruments import check_on_table
-
     if args.work_point is None:
         return None
-    try:
-        wx, wy = (float(v) for v in args.work_point.split(","))
-    except ValueError:
-        raise ValueError(f"--work-point must be X,Y (mm), got {args.work_point!r}") from None
-    check_on_table("work point", wx, wy, _table_mm(cfg), "--work-point")
+    wx, wy = parse_work_point(args.work_point, _table_mm(cfg))
     wq = tuple(q.strip().upper() for q in args.work_reads.split(","))
     bad = [q for q in wq if q not in ("EYX", "EZX", "EAX", "EBX", "ECX")]
     if bad or not wq:

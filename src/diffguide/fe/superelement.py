@@ -201,7 +201,7 @@ def _point_rows(rm, coords, pt: RetainedPoint, interfaces) -> np.ndarray:
             S[3:, rm.index(q, k + 1, what + " (a neighbour)")] += col
             S[3:, rm.index(pt.node, k + 1, what)] -= col
     if pt.below is not None:
-        S[3:5] = _fibre_rows(rm, coords, pt, p0, what)
+        S[3:5] = _fibre_rows(rm, coords, pt, what)
     if pt.neighbours_below:
         S[5] = _mid_surface_yaw(rm, coords, pt, G[2], what)
     return S
@@ -214,12 +214,8 @@ def _mid_surface_yaw(rm, coords, pt: RetainedPoint, g, what) -> np.ndarray:
         raise ValueError(f"{rm.source}: {what}: neighbours_below needs below, and one node per "
                          f"neighbour ({len(pt.neighbours)})")
     row = np.zeros(len(rm.dofs))
-    for top, low in zip((pt.node, *pt.neighbours), (pt.below, *pt.neighbours_below)):
-        d = _coords(coords, low, what + " (below)", rm.source) - _coords(coords, top, what,
-                                                                          rm.source)
-        if not (d[2] < 0 and np.hypot(d[0], d[1]) <= 1e-6 * abs(d[2])):
-            raise ValueError(f"{rm.source}: {what}: node {low} is not straight under node "
-                             f"{top}: offset {np.round(d * 1e3, 6).tolist()} mm")
+    for top, low in zip(pt.neighbours, pt.neighbours_below):  # the point's: _fibre_rows
+        _straight_under(rm, coords, top, low, what)
     for j, (q, qb) in enumerate(zip(pt.neighbours, pt.neighbours_below)):
         for k in range(3):
             for node, sign in ((q, 0.5), (qb, 0.5), (pt.node, -0.5), (pt.below, -0.5)):
@@ -227,13 +223,20 @@ def _mid_surface_yaw(rm, coords, pt: RetainedPoint, g, what) -> np.ndarray:
     return row
 
 
-def _fibre_rows(rm, coords, pt: RetainedPoint, p0, what) -> np.ndarray:
+def _straight_under(rm, coords, top: int, low: int, what) -> np.ndarray:
+    """``p_low - p_top`` (m), refused unless ``low`` lies straight under ``top``."""
+    d = _coords(coords, low, what + " (below)", rm.source) - _coords(coords, top, what,
+                                                                      rm.source)
+    if not (d[2] < 0 and np.hypot(d[0], d[1]) <= 1e-6 * abs(d[2])):
+        raise ValueError(f"{rm.source}: {what}: node {low} (below) is not straight under node "
+                         f"{top}: offset {np.round(d * 1e3, 6).tolist()} mm")
+    return d
+
+
+def _fibre_rows(rm, coords, pt: RetainedPoint, what) -> np.ndarray:
     """Rows of ``(θx, θy)``: the rotation of the fibre from the point to the node ``below``
     (``u_below - u_P = θ × d``, ``d = p_below - p_P`` straight down)."""
-    d = _coords(coords, pt.below, what + " (below)", rm.source) - p0
-    if not (d[2] < 0 and np.hypot(d[0], d[1]) <= 1e-6 * abs(d[2])):
-        raise ValueError(f"{rm.source}: {what}: node {pt.below} (below) is not straight under "
-                         f"node {pt.node}: offset {np.round(d * 1e3, 6).tolist()} mm")
+    d = _straight_under(rm, coords, pt.node, pt.below, what)
     rows = np.zeros((2, len(rm.dofs)))
     # (θ × d)_x = θy dz, (θ × d)_y = -θx dz
     for k, (row, sign) in enumerate(((1, -1.0), (0, 1.0))):  # θx from uy, θy from ux

@@ -406,7 +406,7 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         improvement = paired_improvement(obj, mb, ma, okb & oka)
         say(f"  fresh rails (seed {seed + 1}, {check_samples} samples): start "
             f"{_text(fresh_before)}, optimum {_text(fresh_after)}, improvement "
-            f"{_text(improvement)} {obj.unit}")
+            f"{_text(improvement)} {run.unit}")
     elif plan is not None:  # deterministic: the improvement is exact
         d = run.before.value - after.value
         improvement = Estimate(d, (d, d), 0, 0)
@@ -419,8 +419,7 @@ def design(spec: MachineSpec, positions, *, variables: Sequence[str], bounds=Non
         constraint_rows, active_bounds, tuple(history), len(history),
         len(history) * int(n_samples) + (2 * int(check_samples) if check_samples else 0),
         int(n_samples), int(seed), seed + 1 if check_samples else None, bool(res.success),
-        str(res.message), time.perf_counter() - t0, tuple(stages),
-        obj.unit if plan is None else plan.unit(obj.statistic))
+        str(res.message), time.perf_counter() - t0, tuple(stages), run.unit)
 
 
 def _stages(run, mesh, names, bounds, x, constraints, max_iterations, ftol, say):

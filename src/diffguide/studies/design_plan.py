@@ -44,7 +44,7 @@ import numpy as np
 from ..inverse.basis import RailBasis
 from ..inverse.data import QUANTITIES, Measurements
 from ..inverse.design import N_S
-from ..inverse.instruments import DEFAULT_READING_SIGMA, KINDS
+from ..inverse.instruments import Instrument
 from ..inverse.model import _model
 from ..inverse.planner import rail_prior
 from ..inverse.problem import _as_family, _problem, visited_range
@@ -89,9 +89,6 @@ class MeasurementPlan:
         object.__setattr__(self, "placements", rows)
         if not rows:
             raise ValueError("a measurement plan needs at least one placement")
-        for k, _, _ in rows:
-            if k not in KINDS:
-                raise ValueError(f"placement kind must be one of {', '.join(KINDS)}, got {k!r}")
         if len(set(rows)) != len(rows):
             raise ValueError("a measurement plan: the same instrument twice on one site")
         pos = np.unique(np.round(np.asarray(self.positions, float), 9))
@@ -100,13 +97,7 @@ class MeasurementPlan:
         object.__setattr__(self, "positions", tuple(map(float, pos)))
         if int(self.runs) != self.runs or self.runs < 1:
             raise ValueError(f"runs must be an integer >= 1, got {self.runs!r}")
-        for k, q in self.reads.items():
-            bad = [x for x in q if x not in KINDS.get(k, ())]
-            if k not in KINDS or not q or bad:
-                raise ValueError(f"a {k} reads {' and/or '.join(KINDS.get(k, ()))}, got {q!r}")
-        for k, s in self.sigma.items():
-            if k not in KINDS or not (np.isfinite(s) and s > 0):
-                raise ValueError(f"{k}: the reading σ must be > 0, got {s!r}")
+        self.instruments()  # each kind's reads and σ checked as the planner's instruments
         if not (np.isfinite(self.rail_rms) and self.rail_rms > 0):
             raise ValueError(f"rail_rms must be > 0 m, got {self.rail_rms!r}")
         if self.work_point is not None:
@@ -127,14 +118,21 @@ class MeasurementPlan:
             out["WORK"] = (float(self.work_point[0]), float(self.work_point[1]))
         return out
 
+    def instruments(self) -> dict:
+        """``{kind: Instrument}`` of every kind the plan names (its reads and reading σ, the
+        instruments' defaults where not given)."""
+        kinds = dict.fromkeys([k for k, _, _ in self.placements] + [*self.reads, *self.sigma])
+        return {k: Instrument(k, 1, self.reads.get(k), self.sigma.get(k)) for k in kinds}
+
     def channels(self) -> list[tuple[str, str, float]]:
         """``(site, quantity, merged σ)`` of every channel the plan reads."""
         names = {xy: n for n, xy in self.sites().items() if n != "WORK"}
         per = self.runs * (2 if self.bidirectional else 1)
+        inst = self.instruments()
         out = []
         for k, x, y in self.placements:
-            s = self.sigma.get(k, DEFAULT_READING_SIGMA[k]) / np.sqrt(per)
-            out += [(names[(x, y)], q, s) for q in self.reads.get(k, KINDS[k])]
+            s = inst[k].sigma / np.sqrt(per)
+            out += [(names[(x, y)], q, s) for q in inst[k].quantities]
         return out
 
     def unit(self, criterion: str) -> str:
