@@ -12,11 +12,14 @@ import dataclasses
 import json
 import shutil
 
+import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from diffguide.cli import main
-from diffguide.guideway.rails import SplineRail
+from diffguide.guideway.rails import AbstractRailProfile, SplineRail
 from diffguide.inverse.predict import FitPosterior, predict
 from diffguide.io.config import default_config, spec_from_config
 from diffguide.io.fit_posterior import read_fit_posterior
@@ -28,13 +31,17 @@ X = np.linspace(-0.3, 0.3, 5)  # one shape for every prediction here: one compil
 Q = {"Q": (0.3, 0.1)}  # no instrument stood there
 
 
-@pytest.fixture(scope="module")
-def fitted(tmp_path_factory):
+def _fit(tmp_path_factory, *extra):
     out = tmp_path_factory.mktemp("predict") / "fit"
     assert main(["fit", "--measurements", "data/majda2012_measurements.csv", "--out", str(out),
-                 "--no-plots", "-q"]) == 0
+                 "--no-plots", "-q", *extra]) == 0
     post, meta = read_fit_posterior(out)
     return out, post, meta, spec_from_config(default_config())
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    return _fit(tmp_path_factory)
 
 
 @pytest.fixture(scope="module")
@@ -43,9 +50,39 @@ def prediction(fitted):
     return predict(post, spec, Q, X, measured_points=meta["points_m"])
 
 
+@pytest.fixture(scope="module")
+def fitted_joint(tmp_path_factory):
+    """The bundled data fitted with a rail joint stated at s = 137 mm."""
+    return _fit(tmp_path_factory, "--rail-joints-mm", "137")
+
+
+class _Stepped(AbstractRailProfile):
+    """A spline plus steps of heights ``h`` (m) at ``joints`` (m), each rising over ``w`` (m)
+    as the quintic ``6u⁵ − 15u⁴ + 10u³`` (written out here, not the package's ramp)."""
+
+    spline: SplineRail
+    joints: tuple = eqx.field(static=True)
+    w: float = eqx.field(static=True)
+    hv: jax.Array
+    hh: jax.Array
+
+    def __call__(self, s):
+        ey, ez = self.spline(s)
+        for j, s0 in enumerate(self.joints):
+            u = jnp.clip((s - s0) / self.w + 0.5, 0.0, 1.0)
+            H = 6 * u**5 - 15 * u**4 + 10 * u**3
+            ey, ez = ey + self.hh[j] * H, ez + self.hv[j] * H
+        return ey, ez
+
+
 def _rails(post, c):
     c = np.asarray(c).reshape(2, 2, -1)
-    return tuple(SplineRail(post.start, post.spacing, c[r, 0], c[r, 1]) for r in range(2))
+    n = post.n_coeffs
+    splines = [SplineRail(post.start, post.spacing, c[r, 0, :n], c[r, 1, :n]) for r in range(2)]
+    if not post.joints:
+        return tuple(splines)
+    return tuple(_Stepped(splines[r], tuple(post.joints), post.joint_width, c[r, 0, n:],
+                          c[r, 1, n:]) for r in range(2))
 
 
 def _errors(machine, post, c):
@@ -56,6 +93,29 @@ def _errors(machine, post, c):
 
 
 def test_sigma_is_the_finite_difference_jacobian_times_the_posterior(fitted, prediction):
+    _check_sigma(fitted, prediction)
+
+
+def test_with_a_rail_joint_the_steps_are_unknowns_of_the_prediction(fitted_joint):
+    """The fit's posterior file holds the joint; the prediction's errors and σ include the
+    steps (a spline plus a quintic step, written out in the test, by finite differences); the
+    bundled rails have no joint at 137 mm: every fitted step is within 2σ of 0."""
+    out, post, meta, spec = fitted_joint
+    assert post.joints == (0.137,) and post.coeffs.shape == (2, 2, post.n_coeffs + 1)
+    n = post.n_coeffs
+    steps = post.coeffs[:, :, n]
+    sig = np.sqrt(np.diag(post.cov)[n::n + 1][:4]).reshape(2, 2)
+    assert np.all(np.abs(steps) < 2 * sig), (steps * 1e6, sig * 1e6)
+    report = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    listed = report["elastic"]["rail_joint_steps_um"]
+    assert [(d["s_mm"], d["rail"], d["plane"]) for d in listed] == [
+        (137.0, 1, "vertical"), (137.0, 1, "horizontal"), (137.0, 2, "vertical"),
+        (137.0, 2, "horizontal")]
+    np.testing.assert_allclose([d["value"] for d in listed], steps.ravel() * 1e6, atol=1e-9)
+    _check_sigma(fitted_joint, predict(post, spec, Q, X, measured_points=meta["points_m"]))
+
+
+def _check_sigma(fitted, prediction):
     _, post, meta, spec = fitted
     pts = {**meta["points_m"], **Q}
     t, p = (post.structure[k]["value"] for k in ("thickness", "preload"))

@@ -208,6 +208,8 @@ class Case:
             that point's optics sit ``z`` mm above the table top (Abbe: EXX + z·EBX,
             EYX − z·EAX), written in the ``z_mm`` column.
         seed: noise seed.
+        joints_mm: rail joints the user states to the fit (``fit_rails(joints=...)``), on the
+            rail coordinate (mm); none by default.
     """
 
     name: str
@@ -226,6 +228,7 @@ class Case:
     lead_um: Callable | None = None
     z_mm: tuple[tuple[str, float], ...] = ()
     seed: int = 0
+    joints_mm: tuple[float, ...] = ()
 
     @property
     def wrong_structure(self) -> bool:
@@ -276,7 +279,7 @@ def rail_joint_step() -> Case:
     planes = dict(BUNDLED_TRUTH.planes)
     for pl, h in (("vertical", 3.0), ("horizontal", 2.0)):
         planes[(1, pl)] = dataclasses.replace(planes[(1, pl)], step=(h, 0.137, 2.5e-3))
-    return _case(rail_joint_step, truth=Truth(planes), seed=303)
+    return _case(rail_joint_step, truth=Truth(planes), seed=303, joints_mm=(137.0,))
 
 
 def blind_wavelengths() -> Case:
@@ -616,7 +619,7 @@ def run_fit(case: Case, meas=None):
     if meas is None:
         meas = measurements(case)
     points = dict(zip(meas.point_names, map(tuple, np.asarray(meas.points_xy, float))))
-    return fit_rails(fit_machine(points), meas)
+    return fit_rails(fit_machine(points), meas, joints=np.asarray(case.joints_mm) * 1e-3)
 
 
 def oracle_machine(case: Case, points: dict[str, tuple[float, float]]):

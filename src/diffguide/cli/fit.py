@@ -98,6 +98,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "it from the rails' grade): added in quadrature to every profile σ; default: "
                    "the config's [fit] rail_waviness_um, else 0 (the bands cover only what the "
                    "knots resolve)")
+    p.add_argument("--rail-joints-mm", type=_joints_mm, default=None, metavar="S[,S...]",
+                   help="where the rails are joined (mm on the rail; the carriages' centre is at "
+                   "the table's x = 0): each profile gains a step there, its height fitted and "
+                   "reported; a step the knots cannot hold otherwise rings over several knot "
+                   "spacings; default: the config's [fit] rail_joints_mm, else none")
     p.add_argument("--rigid", dest="rigid", action="store_const", const=True, default=None,
                    help="also run the classical rigid-table inversion (rails_rigid.csv, its "
                    "columns in fit.csv and report.json, a dashed curve in the plots); it costs "
@@ -207,6 +212,19 @@ def read_truth(path, s_m):
     from ..io.rails_csv import rails_at
 
     return rails_at(path, s_m)
+
+
+def _joints_mm(text: str) -> tuple[float, ...]:
+    """``--rail-joints-mm``: comma-separated finite positions (mm)."""
+    try:
+        out = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected positions in mm separated by commas (e.g. 137,637), got {text!r}"
+        ) from None
+    if not all(np.isfinite(v) for v in out):
+        raise argparse.ArgumentTypeError(f"rail joints must be finite (mm), got {text!r}")
+    return out
 
 
 def _settings(args, cfg):
@@ -375,7 +393,7 @@ def _read(args, cfg, info: dict):
 def _fit_all(args, cfg, family, meas):
     """The elastic fit, and the rigid-table inversion when asked for: ``({label: RailFit},
     {label: seconds})``, each summarised on the console."""
-    from ..inverse import fit_rails
+    from ..inverse import fit_rails, settings
 
     _, criterion, waviness, rigid = _settings(args, cfg)
     spacing = None if args.knot_spacing_mm is None else args.knot_spacing_mm * 1e-3
@@ -386,7 +404,8 @@ def _fit_all(args, cfg, family, meas):
         say(args, f"{'rigid-table' if label else 'elastic'} fit: compiling and solving ...")
         fits[label] = fit_rails(m, meas, knot_spacing=spacing, lam=args.lam,
                                 criterion=criterion, max_steps=args.max_steps,
-                                waviness=waviness, method="linear" if label else "lm")
+                                waviness=waviness, method="linear" if label else "lm",
+                                joints=settings.rail_joints(cfg, args.rail_joints_mm))
         seconds[label] = time.perf_counter() - t
         _say_fit(args, label, fits[label], meas, seconds[label])
     return fits, seconds
@@ -408,6 +427,9 @@ def _say_fit(args, label, f, meas, seconds) -> None:
     for c, a in zip(f.alignment_channels, f.alignment):
         say(args, f"  alignment slope of {meas.channel_label(c)}: {a * 1e6:.3g} µm/m "
                    "(fitted, as ISO 230-1 removes it)")
+    for d in f.joint_steps():
+        say(args, f"  step at the rail joint s = {d['s'] * 1e3:g} mm, rail {d['rail']} "
+                   f"{d['plane']}: {d['value'] * 1e6:+.3g} ± {d['sigma'] * 1e6:.2g} µm")
 
 
 def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_start, *,

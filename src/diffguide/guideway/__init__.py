@@ -23,6 +23,7 @@ from .rails import BumpRail as BumpRail
 from .rails import PaperPolynomialRail as PaperPolynomialRail
 from .rails import SinusoidalRail as SinusoidalRail
 from .rails import SplineRail as SplineRail
+from .rails import SteppedRail as SteppedRail
 from .rails import StraightRail as StraightRail
 from .solve import CarriageSolution as CarriageSolution
 from .solve import solve_carriage as solve_carriage

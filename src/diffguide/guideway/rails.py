@@ -263,3 +263,67 @@ class SplineRail(AbstractRailProfile):
             for v in (vertical, horizontal)
         ]
         return cls(float(lo), float(spacing), jnp.asarray(coeffs[0]), jnp.asarray(coeffs[1]))
+
+
+#: Default width (m) of a rail joint's step: the rise of the smoothed step (see :func:`joint_ramp`).
+JOINT_WIDTH = 5e-3
+
+
+def joint_ramp(s, joints, width: float = JOINT_WIDTH, xp=jnp):
+    r"""Unit steps at the rail joints ``joints`` (m), smoothed over ``width`` (m).
+
+    :math:`H(u) = 6u^5 - 15u^4 + 10u^3` with ``u = clip((s − s_j)/w + 1/2, 0, 1)``: 0 before
+    ``s_j − w/2``, 1 after ``s_j + w/2``, twice continuously differentiable (the contact solve
+    and its gradients see no kink). Returns ``(..., len(joints))``, the last axis per joint.
+    Evaluated in ``xp`` (:mod:`jax.numpy`, or :mod:`numpy` for the fit's matrices).
+    """
+    s = xp.asarray(s, dtype=float)[..., None]
+    u = xp.clip((s - xp.asarray(joints, dtype=float)) / width + 0.5, 0.0, 1.0)
+    return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
+
+
+class SteppedRail(AbstractRailProfile):
+    r"""A :class:`SplineRail` with a step at each rail joint: where two rail segments meet, the
+    running grooves of the next segment sit a little higher or to the side.
+
+    :math:`e(s) = e_{spline}(s) + \sum_j h_j\,H((s - s_j)/w)` per plane (:func:`joint_ramp`).
+
+    Arguments:
+        spline: the smooth part. joints: joint positions ``s_j`` (m), static. width: the
+            step's rise ``w`` (m), static. vertical_steps, horizontal_steps: step heights
+            ``h_j`` (m), shape ``(len(joints),)``.
+    """
+
+    spline: SplineRail
+    joints: tuple[float, ...] = eqx.field(static=True)
+    width: float = eqx.field(static=True)
+    vertical_steps: Float[Array, " j"]
+    horizontal_steps: Float[Array, " j"]
+
+    def __check_init__(self):
+        if not self.width > 0:
+            raise ValueError(f"width (of a rail joint's step) must be > 0 m, got {self.width!r}")
+        n = (len(self.joints),)
+        if np.shape(self.vertical_steps) != n or np.shape(self.horizontal_steps) != n:
+            raise ValueError(
+                f"vertical_steps and horizontal_steps must have shape {n} (one per joint), got "
+                f"{np.shape(self.vertical_steps)} and {np.shape(self.horizontal_steps)}"
+            )
+
+    def __call__(self, s):
+        ey, ez = self.spline(s)
+        H = joint_ramp(s, self.joints, self.width)
+        h, v = jnp.asarray(self.horizontal_steps), jnp.asarray(self.vertical_steps)
+        return ey + H @ h, ez + H @ v
+
+
+def basis_rail(start: float, spacing: float, vertical, horizontal, joints=(),
+               width: float = JOINT_WIDTH) -> "SplineRail | SteppedRail":
+    """The rail of one coefficient vector per plane: the spline's ``n`` coefficients followed by
+    one step height per joint (m), as the fit's unknowns are laid out
+    (:class:`~diffguide.inverse.basis.RailBasis`); a :class:`SplineRail` without joints."""
+    if not joints:
+        return SplineRail(start, spacing, vertical, horizontal)
+    n = np.shape(vertical)[0] - len(joints)
+    return SteppedRail(SplineRail(start, spacing, vertical[:n], horizontal[:n]), tuple(joints),
+                       float(width), vertical[n:], horizontal[n:])

@@ -78,7 +78,7 @@ def _content(basis, Z, vecs, n_grid: int = 201) -> np.ndarray:
     """Mean square (µm², per unit coordinate) that each column of ``vecs`` (θ, µm) puts into
     each plane, over both rails: ``(n_vecs, 2 planes)``."""
     B = basis.matrix(basis.grid(n_grid))
-    n = basis.n_coeffs
+    n = basis.per_profile
     c = (Z @ vecs).reshape(2, 2, n, -1)  # rail, plane, coefficient, vector
     e = np.einsum("sk,rpkv->rpsv", B, c)
     return np.mean(e**2, axis=(0, 2)).T
@@ -127,7 +127,7 @@ def undetermined_floor(J_theta, prior, basis, Z, Om_curv, Om_amp, coeffs_um) -> 
     g_plane = np.where(E > 0, Vp / np.where(E > 0, E, 1.0), 1.0)
     # the prior over these directions, each plane's coefficients scaled by √g_p (a scaling per
     # profile keeps the gauge: zero means, and a common slope scaled alike on both rails)
-    n = basis.n_coeffs
+    n = basis.per_profile
     d = np.sqrt(np.repeat(np.tile(g_plane, 2), n))  # profiles: r1 v, r1 h, r2 v, r2 h
     T = Z.T @ (d[:, None] * (Z @ Vs))  # (n_θ, n_sel): θ of the scaled directions
     K = (prior @ Vs).T @ T  # a = V_sᵀPθ of the scaled directions: the floor's prior K Kᵀ

@@ -27,12 +27,20 @@ Penalty: :math:`\sum_{profiles} ∫ e''(s)^2\,ds + ℓ^{-4}∫ e(s)^2\,ds` (``�
 length), exact for cubic splines (``e''`` is piecewise linear: two-point Gauss per knot interval
 is exact for its square; ``e²`` is a sextic, approximated by three-point Gauss, error ~1e-4). The
 small amplitude term makes the prior proper where data and curvature leave a linear mode free.
+
+Rail joints: where the user states that the rails are joined (two segments meeting at ``s_j``),
+each profile gains one more unknown, the height of a step there
+(:func:`~diffguide.guideway.rails.joint_ramp`, smoothed over ``joint_width``): a step the knot
+grid cannot hold (it would ring over several knot spacings) and the curvature penalty does not
+charge for (the step is what the data say; only the amplitude term bounds it). Each profile's
+unknowns are its ``n_coeffs`` spline coefficients followed by its step heights:
+``per_profile = n_coeffs + len(joints)``.
 """
 
 import equinox as eqx
 import numpy as np
 
-from ..guideway.rails import bspline_matrix
+from ..guideway.rails import JOINT_WIDTH, basis_rail, bspline_matrix, joint_ramp
 
 #: The profiles, in the order of the unknowns: (rail index, plane).
 PROFILES = ((0, "vertical"), (0, "horizontal"), (1, "vertical"), (1, "horizontal"))
@@ -45,53 +53,78 @@ def profile_label(k: int) -> str:
 
 
 class RailBasis(eqx.Module):
-    """A uniform cubic B-spline grid over ``[start, end]`` (m): ``n_coeffs`` coefficients.
+    """A uniform cubic B-spline grid over ``[start, end]`` (m): ``n_coeffs`` coefficients, and
+    a step at each rail joint.
 
     Arguments:
-        start: first knot (m). spacing: knot spacing (m), > 0. n_coeffs: coefficients per
-            profile (knot intervals + 3), >= 4.
+        start: first knot (m). spacing: knot spacing (m), > 0. n_coeffs: spline coefficients
+            per profile (knot intervals + 3), >= 4. joints: rail joint positions (m), strictly
+            inside ``(start, end)``, increasing. joint_width: the steps' rise (m), > 0.
     """
 
     start: float = eqx.field(static=True)
     spacing: float = eqx.field(static=True)
     n_coeffs: int = eqx.field(static=True)
+    joints: tuple[float, ...] = eqx.field(static=True, default=())
+    joint_width: float = eqx.field(static=True, default=JOINT_WIDTH)
 
     def __check_init__(self):
         if not self.spacing > 0:
             raise ValueError(f"spacing must be > 0 m, got {self.spacing!r}")
         if self.n_coeffs < 4:
             raise ValueError(f"n_coeffs must be >= 4, got {self.n_coeffs!r}")
+        check_joints(self.joints, self.joint_width, self.start, self.end)
 
     @classmethod
-    def covering(cls, lo: float, hi: float, spacing: float) -> "RailBasis":
-        """Knots from ``lo`` to ``hi`` (m), spacing the largest ≤ ``spacing`` (m) that fits."""
+    def covering(cls, lo: float, hi: float, spacing: float, joints=(),
+                 joint_width: float = JOINT_WIDTH) -> "RailBasis":
+        """Knots from ``lo`` to ``hi`` (m), spacing the largest ≤ ``spacing`` (m) that fits;
+        ``joints``, ``joint_width`` (m) as the class's."""
         if not spacing > 0:
             raise ValueError(f"knot spacing must be > 0 m, got {spacing!r}")
         if not hi > lo:
             raise ValueError(f"the rail range must have hi > lo, got [{lo}, {hi}] m")
         n_seg = max(int(np.ceil((hi - lo) / spacing - 1e-9)), 1)
-        return cls(float(lo), float((hi - lo) / n_seg), n_seg + 3)
+        return cls(float(lo), float((hi - lo) / n_seg), n_seg + 3,
+                   tuple(float(j) for j in joints), float(joint_width))
 
     @property
     def end(self) -> float:
         return self.start + (self.n_coeffs - 3) * self.spacing
 
     @property
+    def per_profile(self) -> int:
+        """Unknowns per profile: the spline's coefficients, then one step height per joint."""
+        return self.n_coeffs + len(self.joints)
+
+    @property
     def size(self) -> int:
         """Length of the unknown vector (4 profiles)."""
-        return 4 * self.n_coeffs
+        return 4 * self.per_profile
 
     def matrix(self, s) -> np.ndarray:
-        """Collocation matrix ``(len(s), n_coeffs)`` of one profile at ``s`` (m)."""
-        return bspline_matrix(np.asarray(s, float), self.start, self.spacing, self.n_coeffs)
+        """Collocation matrix ``(len(s), per_profile)`` of one profile at ``s`` (m): the
+        B-splines, then the joints' unit steps."""
+        s = np.asarray(s, float)
+        B = bspline_matrix(s, self.start, self.spacing, self.n_coeffs)
+        if not self.joints:
+            return B
+        return np.hstack([B, joint_ramp(s, self.joints, self.joint_width, xp=np)])
+
+    def rails(self, coeffs) -> tuple:
+        """The two rails of coefficients ``(2 rails, 2 planes, per_profile)`` (m), as
+        :func:`~diffguide.guideway.rails.basis_rail` lays them out."""
+        return tuple(basis_rail(self.start, self.spacing, coeffs[r, 0], coeffs[r, 1],
+                                self.joints, self.joint_width) for r in range(2))
 
     def second_derivative_matrix(self, s) -> np.ndarray:
-        """``d²B/ds²`` at ``s`` (m) inside ``[start, end]``, ``(len(s), n_coeffs)`` (1/m²)."""
+        """``d²B/ds²`` of the spline at ``s`` (m) inside ``[start, end]``,
+        ``(len(s), per_profile)`` (1/m²); the steps' columns are zero (not charged)."""
         u = (np.asarray(s, float) - self.start) / self.spacing
         i = np.clip(np.floor(u), 0, self.n_coeffs - 4).astype(int)
         t = u - i
         w = np.stack([1 - t, 3 * t - 2, 1 - 3 * t, t], axis=-1) / self.spacing**2
-        D = np.zeros((len(u), self.n_coeffs))
+        D = np.zeros((len(u), self.per_profile))
         for k in range(4):
             np.add.at(D, (np.arange(len(u)), i + k), w[:, k])
         return D
@@ -133,7 +166,7 @@ class RailBasis(eqx.Module):
         mean = B.mean(axis=0)
         sc = s - s.mean()
         slope = sc @ B / (sc @ sc)
-        n = self.n_coeffs
+        n = self.per_profile
         rows, names = [], []
         for k in range(4):
             r = np.zeros(4 * n)
@@ -165,6 +198,25 @@ class RailBasis(eqx.Module):
                 for k in ks:
                     e[k] = e[k] - a * sc
         return e
+
+
+def check_joints(joints, width: float, start: float, end: float) -> None:
+    """Rail joints (m) must be finite, increasing, at least ``width`` (m) apart and inside
+    ``(start, end)`` (m) by half a width: ``ValueError`` naming the joint otherwise."""
+    if not (np.isfinite(width) and width > 0):
+        raise ValueError(f"joint_width must be a finite width > 0 m, got {width!r}")
+    prev = -np.inf
+    for k, s in enumerate(joints):
+        if not (np.isfinite(s) and start + width / 2 < s < end - width / 2):
+            raise ValueError(
+                f"rail joint {k + 1} at {s!r} m ({s * 1e3:g} mm) is not inside the fitted rail "
+                f"range ({start * 1e3:.1f} .. {end * 1e3:.1f} mm) by half the step width "
+                f"({width * 1e3:g} mm)")
+        if s - prev < width:
+            raise ValueError(
+                f"rail joints must increase by at least the step width {width * 1e3:g} mm; "
+                f"joint {k + 1} at {s * 1e3:g} mm follows {prev * 1e3:g} mm")
+        prev = s
 
 
 def null_space_basis(C: np.ndarray, size: int) -> np.ndarray:

@@ -98,8 +98,8 @@ import numpy as np
 
 from .._core.checks import instance, mm_hint, positive_int
 from .._core.precision import require_x64
-from ..guideway.rails import SplineRail
-from .basis import RailBasis
+from ..guideway.rails import JOINT_WIDTH
+from .basis import PLANES, PROFILES, RailBasis
 from .data import Measurements
 from .model import _model as _model
 from .posterior import SECANT_STEP_LIMITS as SECANT_STEP_LIMITS
@@ -221,7 +221,7 @@ class RailFit(eqx.Module):
             _check_in_range(s, self.basis.start, self.basis.end)
         shape = s.shape
         B = self.basis.matrix(np.atleast_1d(s))
-        n = self.basis.n_coeffs
+        n = self.basis.per_profile
         val = np.einsum("sk,rpk->rps", B, self.coeffs)
         sig = np.zeros_like(val)
         for k in range(4):
@@ -230,6 +230,19 @@ class RailFit(eqx.Module):
             sig[r, p] = np.sqrt(np.maximum(np.einsum("sk,kl,sl->s", B, C, B), 0.0)
                                 + self.waviness**2)
         return val.reshape((2, 2) + shape), sig.reshape((2, 2) + shape)
+
+    def joint_steps(self) -> list[dict]:
+        """The fitted step at each rail joint, per profile: ``{s, rail, plane, value, sigma}``
+        (m), σ from the posterior (empty without joints)."""
+        n, per = self.basis.n_coeffs, self.basis.per_profile
+        out = []
+        for j, s in enumerate(self.basis.joints):
+            for k, (r, plane) in enumerate(PROFILES):
+                i = k * per + n + j
+                out.append({"s": float(s), "rail": r + 1, "plane": plane,
+                            "value": float(self.coeffs[r, PLANES.index(plane), n + j]),
+                            "sigma": float(np.sqrt(max(self.cov[i, i], 0.0)))})
+        return out
 
     def predict(self, spec, points, positions, **kw):
         """The six joint errors, with σ from the full posterior, at ``points`` ``{name: (x,
@@ -241,11 +254,10 @@ class RailFit(eqx.Module):
 
         return predict(self, spec, points, positions, **kw)
 
-    def rails(self) -> tuple[SplineRail, SplineRail]:
-        """The fitted profiles as :class:`~diffguide.rails.SplineRail` (rail 1, rail 2)."""
-        c = self.coeffs
-        return tuple(SplineRail(self.basis.start, self.basis.spacing, jnp.asarray(c[r, 0]),
-                                jnp.asarray(c[r, 1])) for r in range(2))
+    def rails(self) -> tuple:
+        """The fitted profiles (rail 1, rail 2): :class:`~diffguide.guideway.SplineRail`, or
+        :class:`~diffguide.guideway.SteppedRail` where the fit has rail joints."""
+        return self.basis.rails(jnp.asarray(self.coeffs))
 
     def to_dataframe(self, s=None, *, extrapolate: bool = False):
         """The profiles as a ``pandas.DataFrame`` in user units, the columns of ``rails.csv``:
@@ -301,6 +313,8 @@ def fit_rails(
     method: str = "lm",
     reject_outliers: bool = True,
     waviness: float = 0.0,
+    joints=(),
+    joint_width: float = JOINT_WIDTH,
 ) -> RailFit:
     """Fit the rail straightness profiles (and the structure) to merged measurements.
 
@@ -333,6 +347,12 @@ def fit_rails(
             the rails' grade. The data cannot estimate it (those wavelengths move no
             carriage); it is added in quadrature to every profile σ. Default 0: the bands then
             cover only what the knot grid resolves.
+        joints: rail joint positions ``s`` (m, increasing; on the rails' coordinate, which is
+            the table's ``x`` where the carriages sit at ``x = 0``): each profile (both rails,
+            both planes) gains a step there, smoothed over ``joint_width`` (m), whose height the
+            data decide (:mod:`.basis`). A step the knot grid cannot hold would ring over
+            several knot spacings and bias the predictions around it. A joint outside the
+            rail length the elements visit is refused (``ValueError``).
 
     Raises ``ValueError`` for inputs that cannot be fitted at all (arguments out of range,
     mismatched points, fewer data than channels, a model that does not converge for straight
@@ -355,7 +375,8 @@ def fit_rails(
 
     def fit_on(spacing, note=""):
         problem = build_problem(machine, meas, knot_spacing=spacing, lam=lam,
-                                criterion=criterion, x_ref=x_ref)
+                                criterion=criterion, x_ref=x_ref, joints=tuple(joints),
+                                joint_width=joint_width)
         st = start(problem)
         if method == "linear":
             solve_linear(st)
@@ -410,7 +431,7 @@ def report_fit(st: FitState, post: Posterior, method: str, waviness: float,
     cov = p.Z @ post.cov_x[:n_theta, :n_theta] @ p.Z.T * _UM**2
     structure = structure_report(p.family, x[iq], st.cov_q,
                                  st.q_info.get("at_bound", [False] * n_q))
-    n_c, lead_end = p.basis.n_coeffs, n_theta + n_q + p.n_lead
+    n_c, lead_end = p.basis.per_profile, n_theta + n_q + p.n_lead
     return RailFit(
         basis=p.basis, coeffs=(c_um * _UM).reshape(2, 2, n_c), cov=cov, Z=p.Z,
         gauge=p.gauge, fix_slope=p.fix_slope, lam=float(st.choice.lam), weight=st.choice,

@@ -116,18 +116,18 @@ def identifiability(fit, machine=None, *, n_wavelengths: int = 40, threshold: fl
 def _gauge_modes(basis):
     """The gauge modes as coefficient vectors: each profile's offset, each plane's common
     slope of both rails (linear functions exactly, on the Greville abscissae)."""
-    n = basis.n_coeffs
-    greville = basis.start + basis.spacing * (np.arange(n) - 1.0)
+    n = basis.per_profile  # a joint's step is no part of a gauge mode: its entries stay 0
+    greville = basis.start + basis.spacing * (np.arange(basis.n_coeffs) - 1.0)
     modes = []
     for k in range(4):
         g = np.zeros(4 * n)
-        g[k * n:(k + 1) * n] = 1.0
+        g[k * n:k * n + basis.n_coeffs] = 1.0
         modes.append((f"offset of {profile_label(k)}", g))
     for plane in PLANES:
         g = np.zeros(4 * n)
         for k, (_, pl) in enumerate(PROFILES):
             if pl == plane:
-                g[k * n:(k + 1) * n] = greville - greville.mean()
+                g[k * n:k * n + basis.n_coeffs] = greville - greville.mean()
         modes.append((f"common {plane} slope of both rails", g))
     return modes
 

@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from .._core.aot import cached_program
-from ..guideway.rails import SplineRail
+from ..guideway.rails import basis_rail
 from ..machine.kinematics import joint_errors_traced
 from .data import QUANTITIES
 from .structure import MachineFamily
@@ -52,15 +52,20 @@ class _Problem(eqx.Module):
     n_coeffs: int = eqx.field(static=True)
     n_chan: int = eqx.field(static=True)
     n_q: int = eqx.field(static=True)
+    joints: tuple[float, ...] = eqx.field(static=True, default=())
+    joint_width: float = eqx.field(static=True, default=1.0)
 
     @property
     def n_c(self) -> int:
-        return 4 * self.n_coeffs
+        return 4 * (self.n_coeffs + len(self.joints))
 
 
 def _rails(c_um, prob: _Problem):
-    c = c_um.reshape(2, 2, prob.n_coeffs) * _UM
-    return tuple(SplineRail(prob.start, prob.spacing, c[r, 0], c[r, 1]) for r in range(2))
+    """The rails of the coefficients ``c_um`` (µm; each profile's spline, then its joints'
+    steps: :class:`.basis.RailBasis`)."""
+    c = c_um.reshape(2, 2, prob.n_c // 4) * _UM
+    return tuple(basis_rail(prob.start, prob.spacing, c[r, 0], c[r, 1], prob.joints,
+                            prob.joint_width) for r in range(2))
 
 
 def _model(v, prob: _Problem):

@@ -134,7 +134,7 @@ def gauge_projector(basis: RailBasis) -> np.ndarray:
     slope from stacked coefficients — the oblique projection onto the constraints' null space
     along the gauge modes (constants, and a common linear function per plane)."""
     C, _ = basis.gauge_functionals((True, True))
-    n = basis.n_coeffs
+    n = basis.per_profile
     s = basis.grid(4 * n)
     B = basis.matrix(s)
     one = np.linalg.lstsq(B, np.ones_like(s), rcond=None)[0]

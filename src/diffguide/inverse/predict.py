@@ -52,10 +52,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import mm_hint
-from ..guideway.rails import SplineRail, bspline_matrix
+from ..guideway.rails import JOINT_WIDTH, bspline_matrix
 from ..machine.build import build_machine
 from ..machine.errors import to_user
 from ..machine.kinematics import ERROR_NAMES, POSITION_RANGE, joint_errors_traced
+from .basis import RailBasis
 from .posterior import SECANT_STEP_LIMITS
 
 #: Machines kept by :func:`predict` (each a condensation of the table; ~1 s for ``majda2012``).
@@ -74,13 +75,14 @@ class FitPosterior:
 
     Attributes:
         start, spacing, n_coeffs: the rails' knot grid (m). coeffs: ``(2 rails, 2 planes, n)``
-            spline coefficients (m), planes (vertical, horizontal). cov: ``Cov v`` of
+            spline coefficients (m), then the rail joints' step heights (m), planes (vertical,
+            horizontal). cov: ``Cov v`` of
             ``v = (c, q, ℓ)`` (c, ℓ in m; q in prior σ). structure: per structural unknown,
             in the fit's order, ``{value, prior_value, prior_sigma_log}`` (thickness in m,
             preload a fraction of C). lead: the lead-error coefficients (m), on lead_basis
             ``(start, spacing, n)`` (m) or ``()``. position_range: the measured positions'
             ``(min, max)`` (m). rigid: fitted with the rigid-table model. x_ref: the reference
-            position (m).
+            position (m). joints, joint_width: the rail joints (m) and their steps' rise (m).
     """
 
     start: float
@@ -94,11 +96,14 @@ class FitPosterior:
     position_range: tuple
     rigid: bool = False
     x_ref: float = 0.0
+    joints: tuple = ()
+    joint_width: float = JOINT_WIDTH
 
     def __post_init__(self):
-        n_v = 4 * self.n_coeffs + len(self.structure) + len(self.lead)
-        if np.shape(self.coeffs) != (2, 2, self.n_coeffs):
-            raise ValueError(f"coeffs must have shape (2, 2, {self.n_coeffs}), got "
+        n = self.basis.per_profile  # checks the joints
+        n_v = 4 * n + len(self.structure) + len(self.lead)
+        if np.shape(self.coeffs) != (2, 2, n):
+            raise ValueError(f"coeffs must have shape (2, 2, {n}), got "
                              f"{np.shape(self.coeffs)}")
         if np.ndim(self.cov) != 2 or np.shape(self.cov)[0] != np.shape(self.cov)[1] \
                 or np.shape(self.cov)[0] < n_v:
@@ -106,6 +111,12 @@ class FitPosterior:
                              f"lead unknowns, got shape {np.shape(self.cov)}")
         if len(self.position_range) != 2:
             raise ValueError("position_range must be (min, max) of the measured positions (m)")
+
+    @property
+    def basis(self) -> RailBasis:
+        """The rails' unknowns: knots and joints."""
+        return RailBasis(float(self.start), float(self.spacing), int(self.n_coeffs),
+                         tuple(map(float, self.joints)), float(self.joint_width))
 
     @classmethod
     def from_fit(cls, fit) -> "FitPosterior":
@@ -123,7 +134,8 @@ class FitPosterior:
             cov=np.asarray(fit.posterior_cov, float),
             structure={n: {k: float(v[k]) for k in keys} for n, v in fit.structure.items()},
             lead=np.asarray(fit.lead, float), lead_basis=tuple(fit.lead_basis),
-            position_range=tuple(map(float, fit.position_range)), rigid=bool(fit.rigid))
+            position_range=tuple(map(float, fit.position_range)), rigid=bool(fit.rigid),
+            joints=tuple(fit.basis.joints), joint_width=float(fit.basis.joint_width))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -227,13 +239,13 @@ def _machine(spec, points: dict, nx, ny, structure: dict, log_shift: float = 0.0
     return _MACHINES[key][-1]
 
 
-def _errors_traced(c, dq_p, machine, positions, x_ref, start, spacing, n, sigma_p):
-    """Joint errors (m, rad) at every point for rail coefficients ``c`` (m, flat) and the
-    preload moved by ``dq_p`` prior σ of its log; and whether every equilibrium converged."""
+def _errors_traced(c, dq_p, machine, positions, x_ref, basis, sigma_p):
+    """Joint errors (m, rad) at every point for rail coefficients ``c`` (m, flat, on
+    ``basis``) and the preload moved by ``dq_p`` prior σ of its log; and whether every
+    equilibrium converged."""
     m = eqx.tree_at(lambda mm: mm.carriage.preload_force, machine,
                     machine.carriage.preload_force * jnp.exp(sigma_p * dq_p))
-    c = c.reshape(2, 2, n)
-    rails = tuple(SplineRail(start, spacing, c[r, 0], c[r, 1]) for r in range(2))
+    rails = basis.rails(c.reshape(2, 2, basis.per_profile))
     je = joint_errors_traced(m, rails, positions, x_ref)
     return je.errors, jnp.all(je.converged)
 
@@ -242,12 +254,11 @@ _errors_jit = eqx.filter_jit(_errors_traced)
 
 
 @eqx.filter_jit
-def _errors_and_jacobian(c, dq_p, machine, positions, x_ref, start, spacing, n, sigma_p):
+def _errors_and_jacobian(c, dq_p, machine, positions, x_ref, basis, sigma_p):
     """Errors ``(n_pos, n_pt, 6)``, their Jacobian in ``(c, dq_p)`` ``(..., 4n + 1)``, and
     convergence."""
     def f(t):
-        e, ok = _errors_traced(t[:-1], t[-1], machine, positions, x_ref, start, spacing, n,
-                               sigma_p)
+        e, ok = _errors_traced(t[:-1], t[-1], machine, positions, x_ref, basis, sigma_p)
         return e, (e, ok)
 
     J, (e, ok) = jax.jacfwd(f, has_aux=True)(jnp.concatenate([c, jnp.zeros(1) + dq_p]))
@@ -261,8 +272,7 @@ def _sweep(post: FitPosterior, machine, x, with_jacobian: bool):
     if post.rigid:
         machine = machine.with_rigid_table()
     args = (jnp.asarray(post.coeffs.reshape(-1)), 0.0, machine, jnp.asarray(x),
-            jnp.asarray(float(post.x_ref)), post.start, post.spacing, post.n_coeffs,
-            float(sigma_p))
+            jnp.asarray(float(post.x_ref)), post.basis, float(sigma_p))
     if with_jacobian:
         e, J, ok = _errors_and_jacobian(*args)
         return np.array(e), np.asarray(J), bool(ok)
@@ -319,7 +329,7 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
     if not ok:
         raise ValueError("the fitted model's equilibrium did not converge at some position; "
                          "no prediction")
-    n_c, names = 4 * post.n_coeffs, list(post.structure)
+    n_c, names = 4 * post.basis.per_profile, list(post.structure)
     n_v = post.cov.shape[0]
     J = np.zeros(e.shape + (n_v,))
     J[..., :n_c] = Jm[..., :n_c]
@@ -375,7 +385,8 @@ def _secant_column(post: FitPosterior, spec, allp, nx, ny, x, i, name,
     over ``±h`` prior σ (module docstring)."""
     s = post.structure[name]["prior_sigma_log"]
     nq = len(post.structure)
-    cov_q = post.cov[4 * post.n_coeffs:4 * post.n_coeffs + nq, 4 * post.n_coeffs + i]
+    n_c = 4 * post.basis.per_profile
+    cov_q = post.cov[n_c:n_c + nq, n_c + i]
     h = float(np.clip(np.sqrt(max(cov_q[i], 0.0)), *SECANT_STEP_LIMITS))
     out = []
     for sign in (-1.0, 1.0):

@@ -22,7 +22,7 @@ import numpy as np
 
 from .._core.checks import length
 from ..fe.table import THICKNESS_RANGE
-from ..guideway.rails import bspline_matrix
+from ..guideway.rails import JOINT_WIDTH, bspline_matrix
 from ..machine.equilibrium import Machine
 from ..machine.kinematics import POSITION_RANGE
 from .basis import RailBasis, null_space_basis
@@ -180,9 +180,11 @@ def _check_stroke(machine, position) -> None:
 
 
 def build_problem(machine, meas: Measurements, *, knot_spacing: float | None,
-                  lam: float | None, criterion: str, x_ref: float) -> FitProblem:
+                  lam: float | None, criterion: str, x_ref: float, joints=(),
+                  joint_width: float = JOINT_WIDTH) -> FitProblem:
     """The :class:`FitProblem` of :func:`~.fit.fit_rails`' arguments (their units): the knot
-    grid over the visited rail length, the gauge, the prior matrices, the nuisance columns.
+    grid over the visited rail length with a step at each rail joint (m), the gauge, the prior
+    matrices, the nuisance columns.
     ``ValueError`` when the machine's points are not the measurements' or the data are fewer
     than the channels and nuisances."""
     family = _as_family(machine)
@@ -206,7 +208,8 @@ def build_problem(machine, meas: Measurements, *, knot_spacing: float | None,
     else:
         length("knot_spacing", knot_spacing, *KNOT_SPACING_RANGE)
     _check_priors(family)
-    basis = RailBasis.covering(*visited_range(base, meas.position), knot_spacing)
+    basis = RailBasis.covering(*visited_range(base, meas.position), knot_spacing, joints,
+                               joint_width)
     # the common slope of both rails in a plane is invisible: pitch and yaw are relative to
     # their reference position, and a straightness channel's slope is its alignment (fitted)
     fix_slope = (True, True)
@@ -306,7 +309,8 @@ def _problem(family: MachineFamily, meas: Measurements, basis: RailBasis, lead_B
         lead=jnp.asarray(lead_B), chan=jnp.asarray(chan),
         prior_sigma=jnp.asarray(family.prior_sigma()), x_ref=jnp.asarray(float(x_ref)),
         start=basis.start, spacing=basis.spacing, n_coeffs=basis.n_coeffs,
-        n_chan=int(chan.max()) + 1, n_q=family.n_params,
+        n_chan=int(chan.max()) + 1, n_q=family.n_params, joints=basis.joints,
+        joint_width=basis.joint_width,
     )
 
 

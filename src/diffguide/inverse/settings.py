@@ -47,6 +47,15 @@ def rail_waviness(cfg: dict, waviness_um: float | None = None) -> float:
     return float(um) * 1e-6
 
 
+def rail_joints(cfg: dict, joints_mm=None) -> tuple[float, ...]:
+    """The stated rail joints (m, increasing): ``joints_mm`` (mm), else the configuration's
+    ``[fit] rail_joints_mm``, else none."""
+    mm = joints_mm
+    if mm is None:
+        mm = cfg.get("fit", {}).get("rail_joints_mm", ())
+    return tuple(sorted(float(v) * 1e-3 for v in mm))
+
+
 def rigid_wanted(cfg: dict, rigid: bool | None = None) -> bool:
     """Whether to run the rigid-table inversion too: ``rigid``, else the configuration's
     ``[fit] rigid``, else no (it costs a compilation of its own)."""

@@ -69,6 +69,17 @@ def _check(value, spec, where):
                     f"{where}: {v:g} outside the allowed range [{lo:g}, {hi:g}] ({help_})"
                 )
         return out
+    if kind == "list":
+        if not isinstance(value, (list, tuple)):
+            raise ValueError(f"{where}: must be a list of numbers [a, b, ...] ({help_}), got "
+                             f"{value!r}")
+        out = tuple(_number(v, where, "each entry") for v in value)
+        for v in out:
+            if not lo <= v <= hi:
+                raise ValueError(
+                    f"{where}: {v:g} outside the allowed range [{lo:g}, {hi:g}] ({help_})"
+                )
+        return out
     if kind == "prior":
         if not isinstance(value, (list, tuple)) or len(value) != 3:
             raise ValueError(

@@ -256,6 +256,14 @@ FIT_SCHEMA: dict[str, tuple] = {
         100.0,
         "RMS of the rails' short-wave content the knots do not resolve (µm), added to every σ",
     ),
+    "rail_joints_mm": (
+        (),
+        "list",
+        -1e5,
+        1e5,
+        "rail joints (mm, on the rail, where the carriages' centre sits at table x = 0): each "
+        "profile gains a step there, its height fitted",
+    ),
     "rigid": (
         False,
         "bool",

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..guideway.rails import JOINT_WIDTH
 from ..inverse.predict import FitPosterior
 
 FORMAT = "diffguide fit posterior 1"
@@ -35,7 +36,8 @@ def posterior_json_text(fit, meas, *, preset: str | None, config: str | None,
     data = {
         "format": FORMAT,
         "units": "SI: m, rad; structure unknowns in prior sigma of their log",
-        "knots": {"start_m": post.start, "spacing_m": post.spacing, "n": post.n_coeffs},
+        "knots": {"start_m": post.start, "spacing_m": post.spacing, "n": post.n_coeffs,
+                  "joints_m": list(post.joints), "joint_width_m": post.joint_width},
         "coeffs_m": post.coeffs.tolist(),
         "cov": post.cov.tolist(),
         "structure": post.structure,
@@ -76,7 +78,8 @@ def read_fit_posterior(folder) -> tuple[FitPosterior, dict]:
                        for n, v in d["structure"].items()},
             lead=np.asarray(d["lead_m"], float), lead_basis=_lead_knots(d["lead_knots"]),
             position_range=tuple(map(float, d["position_range_m"])), rigid=bool(d["rigid"]),
-            x_ref=float(d["x_ref_m"]))
+            x_ref=float(d["x_ref_m"]), joints=tuple(map(float, k.get("joints_m", ()))),
+            joint_width=float(k.get("joint_width_m", JOINT_WIDTH)))
         if not (np.all(np.isfinite(post.coeffs)) and np.all(np.isfinite(post.cov))):
             raise ValueError("non-finite coefficients or covariance")
         meta = {"points_m": {n: (float(x), float(y)) for n, (x, y) in d["points_m"].items()},

@@ -179,6 +179,9 @@ def fit_summary(fit, meas, seconds: float) -> dict:
         "alignment_slopes_um_per_m": {meas.channel_label(c): float(a * 1e6) for c, a in
                                       zip(fit.alignment_channels, fit.alignment)},
         "knot_spacing_mm": fit.basis.spacing * 1e3, "coefficients_per_profile": fit.basis.n_coeffs,
+        "rail_joint_steps_um": [{"s_mm": d["s"] * 1e3, "rail": d["rail"], "plane": d["plane"],
+                                 "value": d["value"] * 1e6, "sigma": d["sigma"] * 1e6}
+                                for d in fit.joint_steps()],
         "s_range_mm": [fit.basis.start * 1e3, fit.basis.end * 1e3],
         "gauge": list(fit.gauge), "channels": channels, "fit_seconds": seconds,
         "units": "user units: µm for EXX/EYX/EZX, µm/m (µrad) for EAX/EBX/ECX",

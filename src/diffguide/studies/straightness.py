@@ -132,7 +132,7 @@ def rail_straightness(fit, s, *, rail_y=None, tolerance: float | None = None,
     """
     s = np.asarray(s, float)
     B = fit.basis.matrix(s)
-    n = fit.basis.n_coeffs
+    n = fit.basis.per_profile
     rows = []
     for k, (r, plane) in enumerate(PROFILES):
         block = slice(k * n, (k + 1) * n)
@@ -154,7 +154,7 @@ def deviation_bands(fit, s, reference: str = "least-squares") -> tuple[np.ndarra
     s = np.asarray(s, float)
     B = fit.basis.matrix(s)
     AB = deviations(s, B.T, reference).T  # the reference line removed from each basis function
-    n = fit.basis.n_coeffs
+    n = fit.basis.per_profile
     dev = np.zeros((2, 2, len(s)))
     sig = np.zeros_like(dev)
     for k, (r, plane) in enumerate(PROFILES):
