@@ -21,7 +21,8 @@ in four steps:
 3. **Calibrated:** the one contact parameter left — the groove conformity D/d (balls, Hertz) or
    the effective roller length (rollers, Palmgren) — is found by a bracketed scalar root-find
    (regula falsi, float64, on its logarithm; the rigidity is monotonic in it) so that the
-   model's rigidity equals the published one.
+   model's rigidity equals the published one — or, for a block whose sources publish none
+   (HIWIN RG: a graph only), the one its user gives.
 4. **Explicit values override:** any :class:`CarriageSpec` field given by the caller replaces
    steps 1–2; the contact parameter is re-fitted with the caller's geometry unless it is given
    too. An explicit ``preload_fraction`` sets the operating preload only: the calibration stays
