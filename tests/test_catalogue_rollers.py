@@ -138,3 +138,16 @@ def test_a_short_machine_file_with_a_roller_block_explains_and_simulates(tmp_pat
         assert np.all(np.isfinite(table[q]))
         assert np.allclose(table[q][at_ref], 0.0, atol=1e-9)
     assert np.max(np.abs(table["EZX_um"])) > 0.1
+
+
+def test_the_solved_secant_of_a_roller_block_agrees():
+    """The carriage's equilibrium under 5 % of C pressing it onto the rail (rotations held)
+    gives a secant rigidity within 5 % of the rigidity the roller length was fitted to."""
+    from diffguide._core.result import RESULTS
+    from diffguide.guideway import static_characteristics
+
+    spec, _ = calibrate_block("HIWIN-RG 35 C", "ZB", rigidity=GIVEN["ZB"] * 1e6)
+    load = 0.05 * PUBLISHED["HIWIN-RG 35 C"]["C"]
+    deflection, sols = static_characteristics(carriage_from_spec(spec), np.array([load]))["down"]
+    assert bool(np.all(sols.result == RESULTS.successful))
+    assert abs(load / float(deflection[0]) / (GIVEN["ZB"] * 1e6) - 1) < 0.05
