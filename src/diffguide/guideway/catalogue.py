@@ -21,7 +21,8 @@ in four steps:
 3. **Calibrated:** the one contact parameter left — the groove conformity D/d (balls, Hertz) or
    the effective roller length (rollers, Palmgren) — is found by a bracketed scalar root-find
    (regula falsi, float64, on its logarithm; the rigidity is monotonic in it) so that the
-   model's rigidity equals the published one.
+   model's rigidity equals the published one — or, for a block whose sources publish none
+   (HIWIN RG: a graph only), the one its user gives.
 4. **Explicit values override:** any :class:`CarriageSpec` field given by the caller replaces
    steps 1–2; the contact parameter is re-fitted with the caller's geometry unless it is given
    too. An explicit ``preload_fraction`` sets the operating preload only: the calibration stays
@@ -351,12 +352,32 @@ def _fit(spec: CarriageSpec, field: str, bounds, target: float, block: str) -> C
     return dataclasses.replace(spec, **{field: shift + math.exp(c)})
 
 
+def _target(block: CatalogueBlock, preload_class: str, rigidity: float | None):
+    """The rigidity the contact parameter is fitted to (N/m, or ``None``) and whose it is."""
+    published = block.rigidity.get(preload_class)
+    if rigidity is None:
+        return published, None if published is None else f"published ({block.cite})"
+    if published is not None:
+        raise ValueError(
+            f"{block.name}: the catalogue publishes a rigidity for class {preload_class!r} "
+            f"({published / 1e6:g} N/µm); give either the catalogue block or your own rigidity "
+            "(a datasheet block), not both"
+        )
+    if not (math.isfinite(rigidity) and rigidity > 0):
+        raise ValueError(f"{block.name}: rigidity must be > 0 N/m, got {rigidity!r}")
+    return float(rigidity), f"given (none published in {block.cite})"
+
+
 #: The CarriageSpec fields a caller may set explicitly (SI).
 SPEC_FIELDS = tuple(f.name for f in dataclasses.fields(CarriageSpec))
 
 
 def calibrate_block(
-    block: CatalogueBlock | str, preload_class: str | None = None, **explicit
+    block: CatalogueBlock | str,
+    preload_class: str | None = None,
+    *,
+    rigidity: float | None = None,
+    **explicit,
 ) -> tuple[CarriageSpec, dict[str, str]]:
     """The :class:`CarriageSpec` of a catalogue block at a preload class, and where each value
     comes from: published, chosen, calibrated or explicit.
@@ -367,12 +388,17 @@ def calibrate_block(
     :func:`radial_rigidity` (the tangent stiffness under a load pressing the block onto the
     rail, at the preload without other load) equals the published rigidity of the class.
     Explicit fields replace the rules; the contact parameter is re-fitted with them unless it
-    is explicit too. An explicit ``preload_fraction`` sets the operating preload only.
+    is explicit too. An explicit ``preload_fraction`` sets the operating preload only. A block
+    whose sources publish no rigidity for the class (HIWIN RG) is fitted to ``rigidity``, the
+    user's figure; a published rigidity is never replaced (a block with other figures is a
+    :func:`datasheet_block`).
 
     Arguments:
         block: a :class:`CatalogueBlock` or a name in the table (:func:`catalogue_block`).
         preload_class: one of the block's classes (``"datasheet"`` for a
             :func:`datasheet_block`; may be omitted when the block has only one).
+        rigidity: the block's radial rigidity at the class's preload (N/m), only where the
+            table has none for the class.
         explicit: :class:`CarriageSpec` fields (SI) that override the catalogue and the rules.
 
     Returns:
@@ -389,12 +415,7 @@ def calibrate_block(
             raise ValueError(f"{block.name}: a preload class is needed; allowed: {allowed}")
         preload_class = next(iter(block.preload_classes))
     fraction = block.preload_fraction(preload_class)
-    if preload_class not in block.rigidity:
-        raise ValueError(
-            f"{block.name}: no published rigidity for preload class {preload_class!r}; classes "
-            f"with one: {', '.join(block.rigidity)}"
-        )
-    target = block.rigidity[preload_class]
+    target, whose = _target(block, preload_class, rigidity)
     lo, hi = block.preload_classes[preload_class]
     values = envelope_geometry(block)
     prov = {k: f"chosen: {_RULES[k]}" for k in values}
@@ -416,10 +437,18 @@ def calibrate_block(
     prov |= {k: "explicit" for k in explicit}
     spec = CarriageSpec(**values)
     if field not in explicit:
+        if target is None:
+            raise ValueError(
+                f"{block.name}: no rigidity is published for preload class {preload_class!r} "
+                f"in the source read ({block.cite}; classes with one: "
+                f"{', '.join(block.rigidity) or 'none'}); give the block's radial rigidity at "
+                f"this class from its datasheet (rigidity=... N/m; in a machine file "
+                f"[carriage] rigidity_N_um) or {field} explicitly"
+            )
         spec = _fit(spec, field, bounds, target, block.name)
         prov[field] = (
-            f"calibrated: radial rigidity at class {preload_class} preload = published "
-            f"{target / 1e6:g} N/µm ({block.cite})"
+            f"calibrated: radial rigidity at class {preload_class} preload = "
+            f"{target / 1e6:g} N/µm, {whose}"
         )
     if "preload_fraction" in explicit:
         spec = dataclasses.replace(spec, preload_fraction=explicit["preload_fraction"])

@@ -3,14 +3,18 @@ source (read by :mod:`diffguide.guideway.catalogue`, which derives the model's i
 from these figures). Units in the key names.
 
 A block is named ``"<family> <size> <type>"``: the maker's series, the size class and the
-maker's block-type code (here HIWIN's load class: HG C = heavy load, H = super heavy load; EG
-S = medium load, C = heavy load; the square and flange blocks of one load class share C, C0 and
-rigidity).
+maker's block-type code (here HIWIN's load class: HG and RG C = heavy load, H = super heavy
+load; EG S = medium load, C = heavy load; the square and flange blocks of one load class share
+C, C0 and rigidity).
 
 - ``element``: ``"ball"`` or ``"roller"``.
 - ``preload_classes``: ``(low, high)`` fractions of the dynamic capacity C, as published.
 - ``rigidity_N_um``: the published rigidity per preload class in the family's
-  ``rigidity_direction``; ``rigidity_load`` says at which load the catalogue gives it.
+  ``rigidity_direction``; ``rigidity_load`` says at which load the catalogue gives it. Empty
+  where the sources read publish no rigidity as numbers (HIWIN RG: the Technical Information
+  shows a graph only): such a block is calibrated to the rigidity its user gives.
+- ``C_N``: the dynamic capacity as published; for roller blocks HIWIN rates it for 100 km
+  (C100; ball blocks: 50 km), and the preload classes are fractions of that C.
 - dimensions (mm): ``block_height`` H (rail foot to block top), ``block_width`` W,
   ``body_length`` L1 (steel body, without end caps), ``block_length`` L (with end caps),
   ``bolt_pattern`` (along X, across Y), ``rail_width`` WR, ``rail_height`` HR.
@@ -36,6 +40,16 @@ SOURCES = {
         "sec. 2-1-1 (contact at 45 degrees)",
         "url": "https://www.hiwin.tw",
     },
+    "hiwin-technical-information-rg": {
+        "short": "HIWIN Technical Information G99TE20-1808, RG series",
+        "catalogue": "HIWIN Linear Guideway Technical Information "
+        "(HIWIN Technologies Corp., www.hiwin.tw)",
+        "edition": "G99TE20-1808",
+        "pages": "p. 145 (sec. 2-9-1, rollers at a 45-degree contact angle), p. 150 (Table "
+        "2-9-13 preload classes, RG series), p. 161 (sec. 2-9-13 (1) dimension table "
+        "RGH-CA / RGH-HA, C (C100) and C0)",
+        "url": "https://www.hiwin.tw",
+    },
 }
 
 #: Per family: element, published contact angle (degrees), preload classes, rigidity basis.
@@ -58,6 +72,15 @@ FAMILIES = {
         "preload_classes": {"Z0": (0.0, 0.02), "ZA": (0.03, 0.05), "ZB": (0.06, 0.08)},
         "rigidity_direction": "radial",
         "rigidity_load": "not stated (deflection = load / rigidity, Compact formula 1.1)",
+    },
+    "HIWIN-RG": {
+        "element": "roller",
+        "contact_angle_deg": 45.0,
+        "source": "hiwin-technical-information-rg",
+        # Table 2-9-13 of the Technical Information (RG series)
+        "preload_classes": {"Z0": (0.02, 0.04), "ZA": (0.07, 0.09), "ZB": (0.12, 0.14)},
+        "rigidity_direction": "radial",
+        "rigidity_load": "none published as numbers in the source read (a graph only)",
     },
 }
 
@@ -160,5 +183,71 @@ BLOCKS = [
         "bolt_pattern_mm": (35.0, 35.0),
         "rail_width_mm": 23.0,
         "rail_height_mm": 18.0,
+    },
+    # HIWIN Technical Information G99TE20-1808 p. 161 (RGH..CA / RGH..HA): no rigidity numbers
+    # are published there, so ``rigidity_N_um`` is empty and the user gives the rigidity.
+    {
+        "family": "HIWIN-RG",
+        "size": "25",
+        "type": "C",
+        "source": "hiwin-technical-information-rg",
+        "C_N": 27700.0,
+        "C0_N": 57100.0,
+        "rigidity_N_um": {},
+        "block_height_mm": 40.0,
+        "block_width_mm": 48.0,
+        "body_length_mm": 64.5,
+        "block_length_mm": 97.9,
+        "bolt_pattern_mm": (35.0, 35.0),
+        "rail_width_mm": 23.0,
+        "rail_height_mm": 23.6,
+    },
+    {
+        "family": "HIWIN-RG",
+        "size": "25",
+        "type": "H",
+        "source": "hiwin-technical-information-rg",
+        "C_N": 33900.0,
+        "C0_N": 73400.0,
+        "rigidity_N_um": {},
+        "block_height_mm": 40.0,
+        "block_width_mm": 48.0,
+        "body_length_mm": 81.0,
+        "block_length_mm": 114.4,
+        "bolt_pattern_mm": (50.0, 35.0),
+        "rail_width_mm": 23.0,
+        "rail_height_mm": 23.6,
+    },
+    {
+        "family": "HIWIN-RG",
+        "size": "35",
+        "type": "C",
+        "source": "hiwin-technical-information-rg",
+        "C_N": 57900.0,
+        "C0_N": 105200.0,
+        "rigidity_N_um": {},
+        "block_height_mm": 55.0,
+        "block_width_mm": 70.0,
+        "body_length_mm": 79.0,
+        "block_length_mm": 124.0,
+        "bolt_pattern_mm": (50.0, 50.0),
+        "rail_width_mm": 34.0,
+        "rail_height_mm": 30.2,
+    },
+    {
+        "family": "HIWIN-RG",
+        "size": "35",
+        "type": "H",
+        "source": "hiwin-technical-information-rg",
+        "C_N": 73100.0,
+        "C0_N": 142000.0,
+        "rigidity_N_um": {},
+        "block_height_mm": 55.0,
+        "block_width_mm": 70.0,
+        "body_length_mm": 106.5,
+        "block_length_mm": 151.5,
+        "bolt_pattern_mm": (72.0, 50.0),
+        "rail_width_mm": 34.0,
+        "rail_height_mm": 30.2,
     },
 ]

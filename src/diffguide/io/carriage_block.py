@@ -6,7 +6,7 @@ is validated:
 
 - ``block = "<family> <size> <type>"`` and ``preload_class = "..."``: a block of the package's
   catalogue table (:mod:`diffguide.guideway.catalogue`), its contact geometry calibrated to the
-  published rigidity;
+  published rigidity (or to ``rigidity_N_um``, for a block whose sources publish none);
 - a block not in the table, by its datasheet alone: ``capacity_N``, ``preload_fraction``,
   ``rigidity_N_um`` and the envelope ``block_height_mm``, ``block_width_mm``,
   ``body_length_mm``, ``rail_width_mm``, ``rail_height_mm`` (``law = "roller"`` for rollers);
@@ -28,7 +28,7 @@ CATALOGUE_KEYS: dict[str, tuple] = {
         "float",
         1.0,
         1e5,
-        "datasheet block: published radial rigidity at its preload (N/µm)",
+        "datasheet block, or a catalogue block without one: radial rigidity at its preload (N/µm)",
     ),
     "block_height_mm": (None, "float", 5.0, 1000.0, "datasheet block: rail foot to block top"),
     "block_width_mm": (None, "float", 5.0, 1000.0, "datasheet block: block width"),
@@ -85,7 +85,7 @@ def _block(cat: dict, explicit: dict, source: str):
     where = f"{source}: [carriage]"
     given = [k for k in _DATASHEET if k in cat]
     if "block" in cat:
-        if given:
+        if given and given != ["rigidity_N_um"]:
             raise ValueError(
                 f"{where}: give either 'block' or the datasheet keys ({', '.join(given)}), not both"
             )
@@ -151,8 +151,11 @@ def resolve_catalogue(raw: dict, source: str, check, schema: dict) -> tuple[dict
     cat = _catalogue_values(body, source, check)
     explicit = _explicit(body, source, check, schema)
     block, cls = _block(cat, explicit, source)
+    rigidity = cat.get("rigidity_N_um") if "block" in cat else None
     try:
-        spec, prov = calibrate_block(block, cls, **explicit)
+        spec, prov = calibrate_block(
+            block, cls, rigidity=None if rigidity is None else rigidity * 1e6, **explicit
+        )
     except ValueError as exc:
         raise ValueError(f"{source}: [carriage]: {exc}") from None
     carriage = {key: _user(getattr(spec, _field(key)[0]), _field(key)[1]) for key in schema}
