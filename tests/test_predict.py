@@ -112,6 +112,8 @@ def test_with_a_rail_joint_the_steps_are_unknowns_of_the_prediction(fitted_joint
         (137.0, 1, "vertical"), (137.0, 1, "horizontal"), (137.0, 2, "vertical"),
         (137.0, 2, "horizontal")]
     np.testing.assert_allclose([d["value"] for d in listed], steps.ravel() * 1e6, atol=1e-9)
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert html.count("step at the rail joint s = 137 mm") == 4
     _check_sigma(fitted_joint, predict(post, spec, Q, X, measured_points=meta["points_m"]))
 
 

@@ -121,6 +121,9 @@ def _determined_section(report: dict) -> str:
                      f"{_e(s['note'])}</li>")
     if el["resolution"]["rail_waviness_um"] > 0:
         items.append(f"<li>{_e(el['resolution']['note'])}</li>")
+    for d in el.get("rail_joint_steps_um", []):
+        items.append(f"<li>step at the rail joint s = {d['s_mm']:g} mm, rail {d['rail']} "
+                     f"{_e(d['plane'])}: {d['value']:+.3g} ± {d['sigma']:.2g} µm (fitted)</li>")
     items.append(f"<li>{_e(ident['gauge']['note'])}: each rail's offset and the rails' common "
                  "slope are not measured; the straightness does not depend on them</li>")
     return (f"<p>A wavelength is <em>determined</em> where the fit recovers at least "
