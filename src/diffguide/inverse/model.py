@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from .._core.aot import cached_program
-from ..guideway.rails import basis_rail
+from ..guideway.rails import JOINT_WIDTH, basis_rail
 from ..machine.kinematics import joint_errors_traced
 from .data import QUANTITIES
 from .structure import MachineFamily
@@ -53,7 +53,7 @@ class _Problem(eqx.Module):
     n_chan: int = eqx.field(static=True)
     n_q: int = eqx.field(static=True)
     joints: tuple[float, ...] = eqx.field(static=True, default=())
-    joint_width: float = eqx.field(static=True, default=1.0)
+    joint_width: float = eqx.field(static=True, default=JOINT_WIDTH)
 
     @property
     def n_c(self) -> int:
