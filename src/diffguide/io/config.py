@@ -59,17 +59,9 @@ def _check(value, spec, where):
         if not lo <= v <= hi:
             raise ValueError(f"{where}: {v:g} outside the allowed range [{lo:g}, {hi:g}] ({help_})")
         return v
-    if kind == "pair":
-        if not isinstance(value, (list, tuple)) or len(value) != 2:
+    if kind in ("pair", "list"):
+        if kind == "pair" and (not isinstance(value, (list, tuple)) or len(value) != 2):
             raise ValueError(f"{where}: must be a list of two numbers [a, b], got {value!r}")
-        out = tuple(_number(v, where, "each entry") for v in value)
-        for v in out:
-            if not lo <= v <= hi:
-                raise ValueError(
-                    f"{where}: {v:g} outside the allowed range [{lo:g}, {hi:g}] ({help_})"
-                )
-        return out
-    if kind == "list":
         if not isinstance(value, (list, tuple)):
             raise ValueError(f"{where}: must be a list of numbers [a, b, ...] ({help_}), got "
                              f"{value!r}")
