@@ -166,6 +166,7 @@ def _rib_share(w, d, t, cells):
     (0.02, 0.04, 0.03, 0.005),  # the superelement example's rib
     (0.02, 0.06, 0.035, 0.005),  # t/w = 1.75, d = 3 w: between the fit's points
     (0.02, 0.02, 0.03, 0.025),  # a square rib: 2 % documented
+    (0.02, 0.01, 0.02, 0.05),  # flatter than square, d = w / 2, t = w: 3 % documented
 ])
 def test_bonded_rib_torsion_matches_prandtl(w, d, t, rel):
     """The torsion constant a rib adds to its plate (closed form with a fitted junction term)
@@ -177,6 +178,24 @@ def test_bonded_rib_torsion_matches_prandtl(w, d, t, rel):
     got = float(bonded_rib_torsion(w, d, t))
     assert got == pytest.approx(ref, rel=rel)
     assert got > 1.5 * float(rect_section(w, d)["J"])
+
+
+def test_bonded_rib_torsion_is_smooth_and_vanishes_with_the_rib():
+    """ΔJ and its derivative by the depth are continuous where the flat-rib branch meets the
+    formula (d = w, central differences on each side), ΔJ grows with d and is 0 at d = 0."""
+    import jax
+
+    from diffguide.fe.beam import bonded_rib_torsion
+
+    w, t, h = 0.02, 0.03, 1e-7
+    dJ = jax.grad(lambda d: bonded_rib_torsion(w, d, t))
+    for d in (w - 2 * h, w + 2 * h):
+        fd = (bonded_rib_torsion(w, d + h, t) - bonded_rib_torsion(w, d - h, t)) / (2 * h)
+        assert float(dJ(d)) == pytest.approx(float(fd), rel=1e-5)
+    assert float(dJ(w - 1e-9)) == pytest.approx(float(dJ(w + 1e-9)), rel=1e-6)
+    d = np.linspace(0.0, 0.08, 81)
+    J = np.asarray(bonded_rib_torsion(w, d, t))
+    assert J[0] == pytest.approx(0.0, abs=1e-12 * J.max()) and np.all(np.diff(J) > 0)
 
 
 def test_prandtl_solver_gives_the_rectangle():
