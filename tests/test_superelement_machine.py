@@ -16,8 +16,8 @@ of the free rectangle, before :func:`~diffguide.fe.beam.bonded_rib_torsion`: 0.3
 0.1 %), plate 1.00 % and 1.08 % in variants 2 and 3: the shells' bending against one brick
 layer, in pitch and vertical straightness at the corners. Against CalculiX's whole machine
 (``test_calculix_reference.py``, ``test_calculix_ribbed.py``) the imported tables are within
-0.2 % (plate) and 0.8 % (ribbed), diffguide's own within 0.4 % and 1.2 %. The import itself
-the closed-form tests of ``test_superelement_readers.py`` check exactly.
+0.2 % (plate) and 0.8 % (ribbed), diffguide's own within 0.4 % and 1.2 %. The import itself is
+checked exactly by the closed-form tests of ``test_superelement_readers.py``.
 """
 
 import dataclasses
