@@ -35,6 +35,9 @@ from .beam import (
     beam_stiffness as beam_stiffness,
 )
 from .beam import (
+    bonded_rib_torsion as bonded_rib_torsion,
+)
+from .beam import (
     rect_section as rect_section,
 )
 from .condense import (

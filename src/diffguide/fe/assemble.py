@@ -15,7 +15,7 @@ import numpy as np
 
 from .._core.types import Array, Float, ScalarLike
 from ._xp import memo
-from .beam import beam_load, beam_stiffness, rect_section
+from .beam import beam_load, beam_stiffness, bonded_rib_torsion, rect_section
 from .materials import CAST_IRON, Material
 from .mesh import TableMesh
 from .shell import shell_load, shell_matrices, shell_stiffness
@@ -128,12 +128,13 @@ def element_arrays_xp(mesh, plate, nodes, gravity, surface_load, xp=jnp):
         k = xp.asarray(mesh.beam_rib)
         E, G, rho, w, d = E[k], G[k], rho[k], w[k], d[k]
         sec = rect_section(w, d, xp=xp)
+        J = bonded_rib_torsion(w, d, t, xp=xp)  # the rib's share of the T-section's torsion
         zeros = xp.zeros_like(d)
         off = xp.stack([zeros, zeros, -(0.5 * t + 0.5 * d)], axis=1)
         beams = xp.asarray(mesh.beams)
         bxyz = xyz[beams]
         Kb = beam_stiffness(
-            bxyz, E, G, sec["A"], sec["Iy"], sec["Iz"], sec["J"], 5.0 / 6.0, off, xp=xp
+            bxyz, E, G, sec["A"], sec["Iy"], sec["Iz"], J, 5.0 / 6.0, off, xp=xp
         )
         q = xp.stack([zeros, zeros, -gravity * rho * sec["A"]], axis=1)
         fb = beam_load(bxyz, q, off, xp=xp)

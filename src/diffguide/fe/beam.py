@@ -16,6 +16,9 @@ under a tip load deflects exactly ``P L³ / 3 E I + P L / κ G A``.
 Every function takes an array module ``xp`` (:mod:`jax.numpy` by default, or :mod:`numpy` for
 an eager evaluation of concrete inputs) and accepts a batch of elements on leading axes.
 
+A rib bonded under a plate twists with the plate: its torsion constant is what it adds to the
+plate's (:func:`bonded_rib_torsion`), not that of the free rectangle.
+
 Offset (eccentric beam, e.g. a rib under a plate): the beam's axis runs at ``node + e`` (global
 vector ``e``, m, the same at both ends) and is tied rigidly to the node:
 ``u_axis = u_node + θ_node × e``, ``θ_axis = θ_node``.
@@ -57,6 +60,50 @@ def rect_section(width: ScalarLike, depth: ScalarLike, xp=jnp) -> dict[str, Arra
     a, b = xp.maximum(w, h), xp.minimum(w, h)
     J = a * b**3 * (1.0 / 3.0 - 0.21 * (b / a) * (1.0 - b**4 / (12.0 * a**4)))
     return {"A": w * h, "Iy": w * h**3 / 12.0, "Iz": h * w**3 / 12.0, "J": J}
+
+
+#: Coefficients (c₀, c₁, c₂) of the junction term of :func:`bonded_rib_torsion`.
+JUNCTION = (-0.085, 0.222, 0.153)
+
+
+def bonded_rib_torsion(
+    width: ScalarLike, depth: ScalarLike, plate_thickness: ScalarLike, xp=jnp
+) -> Array:
+    """Torsion constant (m⁴) that a rectangular rib adds to the plate it is bonded to.
+
+    Saint-Venant torsion of the T-section "plate + rib" (Prandtl: ``∇²φ = -2`` in the section,
+    ``φ = 0`` on its boundary, ``J = 2 ∫ φ dA``) less that of the plate alone, which the shell
+    already carries (``t³/3`` per unit width). Bonded, the rib twists much stiffer than the free
+    rectangle of :func:`rect_section`: its top face is no free edge, and the shear flow turns
+    through the plate around the junction. With ``w`` = ``width``, ``d`` = ``depth`` and
+    ``t`` = ``plate_thickness`` (m), ``s = t / w``:
+
+    ``ΔJ = d w³ (1/3 - 0.105 (w/d)(1 - w⁴/(192 d⁴))) + w⁴ (c₀ + c₁ s + c₂ s²)``  (d ≥ w)
+
+    The first term is the rectangle of :func:`rect_section` with its end correction (Roark,
+    Table 10.7) at the free edge only, half of 0.21. The second, the junction, depends on
+    ``t / w`` alone (checked for ``d`` from 2 w to 4 w); (c₀, c₁, c₂) = :data:`JUNCTION` is a
+    least-squares fit to finite-difference solutions of Prandtl's equation (a wide plate, grids
+    of w/40 and w/80, Richardson-extrapolated). Accuracy of ΔJ against those solutions: 0.5 %
+    for ``d ≥ 2 w`` and ``0.25 ≤ t / w ≤ 4``, 2 % at ``d = w``. A rib flatter than square
+    (``d < w``) takes the quadratic in ``d`` that meets the formula at ``d = w`` with its slope
+    and vanishes at ``d = 0``: 3 % low at ``d = w / 2``, ``t = w`` (7 % at ``t = 1.5 w``), up to
+    40 % low for thin strips (``d = w / 8``) under a thick plate (``t = 3 w``). The rib's own
+    shear modulus multiplies ΔJ (exact for a rib of the plate's material). A 20 × 40 mm rib on
+    a 30 mm plate: ΔJ = 2.52 × the free rectangle's J.
+    """
+    w, d, t = xp.asarray(width), xp.asarray(depth), xp.asarray(plate_thickness)
+    s = t / w
+    c0, c1, c2 = JUNCTION
+    junction = w**4 * (c0 + c1 * s + c2 * s**2)
+    deep = xp.maximum(d, w)  # the formula's own range (no overflow in the branch not taken)
+    r = w / deep
+    J = deep * w**3 * (1.0 / 3.0 - 0.105 * r * (1.0 - r**4 / 192.0)) + junction
+    J1 = w**4 * (1.0 / 3.0 - 0.105 * (1.0 - 1.0 / 192.0)) + junction  # at d = w
+    slope = w**3 * (1.0 / 3.0 - 0.105 * 4.0 / 192.0)  # dΔJ/dd at d = w
+    x = d - w
+    flat = J1 + slope * x + (slope * w - J1) * (x / w) ** 2
+    return xp.where(d >= w, J, flat)
 
 
 def _bending(EI, phi, L, sign, xp=jnp):

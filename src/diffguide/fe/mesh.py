@@ -9,7 +9,8 @@ Frame: X along the rails (length), Y across (width), Z up; the plate mid-surface
 Nodes are numbered column by column: ``node = i * len(ys) + j`` for the grid line ``xs[i]``,
 ``ys[j]``; quads are counter-clockwise seen from +Z (normal +Z). Ribs are Timoshenko beams along
 grid lines, hanging under the plate (their centroid at ``z = -t/2 - depth/2``, an offset from the
-plate nodes handled by the beam element).
+plate nodes handled by the beam element; their torsion constant is the one they add to the
+plate, :func:`diffguide.fe.beam.bonded_rib_torsion`).
 
 Topology (indices) is plain NumPy, fixed when the mesh is built; node coordinates are a NumPy
 array here, and any array of the same shape (e.g. a traced one) may replace them in assembly.
