@@ -99,8 +99,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "the config's [fit] rail_waviness_um, else 0 (the bands cover only what the "
                    "knots resolve)")
     p.add_argument("--rail-joints-mm", type=_joints_mm, default=None, metavar="S[,S...]",
-                   help="where the rails are joined (mm on the rail; the carriages' centre is at "
-                   "the table's x = 0): each profile gains a step there, its height fitted and "
+                   help="where the rails are joined (mm along the rail, as rails.csv's s_mm): "
+                   "each profile gains a step there, its height fitted and "
                    "reported; a step the knots cannot hold otherwise rings over several knot "
                    "spacings; default: the config's [fit] rail_joints_mm, else none")
     p.add_argument("--rigid", dest="rigid", action="store_const", const=True, default=None,

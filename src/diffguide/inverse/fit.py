@@ -347,8 +347,8 @@ def fit_rails(
             the rails' grade. The data cannot estimate it (those wavelengths move no
             carriage); it is added in quadrature to every profile σ. Default 0: the bands then
             cover only what the knot grid resolves.
-        joints: rail joint positions ``s`` (m, increasing; on the rails' coordinate, which is
-            the table's ``x`` where the carriages sit at ``x = 0``): each profile (both rails,
+        joints: rail joint positions ``s`` (m, increasing) on the profiles' axis (as
+            :meth:`profiles`' ``s``, ``rails.csv``'s ``s_mm``): each profile (both rails,
             both planes) gains a step there, smoothed over ``joint_width`` (m), whose height the
             data decide (:mod:`.basis`). A step the knot grid cannot hold would ring over
             several knot spacings and bias the predictions around it. A joint outside the

@@ -261,8 +261,8 @@ FIT_SCHEMA: dict[str, tuple] = {
         "list",
         -1e5,
         1e5,
-        "rail joints (mm, on the rail, where the carriages' centre sits at table x = 0): each "
-        "profile gains a step there, its height fitted",
+        "rail joints (mm along the rail, as rails.csv's s_mm): each profile gains a step "
+        "there, its height fitted",
     ),
     "rigid": (
         False,
