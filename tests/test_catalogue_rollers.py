@@ -67,6 +67,9 @@ def test_without_a_rigidity_the_error_says_what_to_give():
     # a published rigidity is not replaced by the user's
     with pytest.raises(ValueError, match="publishes a rigidity for class 'ZA' .630 N/µm.*not both"):
         calibrate_block("HIWIN-HG 25 C", "ZA", rigidity=1e9)
+    # nor fitted and given at once: the explicit roller length would leave it unused
+    with pytest.raises(ValueError, match="either the rigidity .fitted by roller_length. or"):
+        calibrate_block("HIWIN-RG 25 C", "ZA", rigidity=1.5e9, roller_length=5e-3)
 
 
 def test_the_envelope_is_the_published_one():

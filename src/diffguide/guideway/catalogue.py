@@ -429,6 +429,11 @@ def calibrate_block(
     )
     prov["smoothing_fraction"] = "chosen: default 0.02"
     field, bounds = _free_parameter(explicit.get("law", values["law"]))
+    if rigidity is not None and field in explicit:
+        raise ValueError(
+            f"{block.name}: give either the rigidity (fitted by {field}) or {field} itself, "
+            "not both"
+        )
     other = "roller_length" if field == "groove_conformity" else "groove_conformity"
     values[other] = 6e-3 if other == "roller_length" else 1.01
     prov[other] = "unused by this law (a valid placeholder)"
