@@ -4,8 +4,8 @@ Levenberg–Marquardt converge on every case when λ is given (``fit_rails(lam=.
 
 Per case and λ: converged or not, the LM steps, χ²/dof, the thickness estimate and the fit's
 message, as one markdown row. The cases' data are their own (seed, layout, structure); the fit is
-the battery's (``cases.run_fit``'s machine and priors, the case's stated joints). About 30–90 s
-a fit on 2 cores. Run:
+the battery's (``cases.run_fit``'s machine and priors, the case's stated joints). From 3 s to
+about 10 min a fit on 2 cores (λ = 1e-5 is the slower). Run:
 
     python bench/battery_fixed_lambda.py [CASE ...] [--lam 1e-5,1e-3]
 """
