@@ -1,5 +1,7 @@
 import gc
 import os
+import shutil
+import tempfile
 
 # One OpenBLAS thread, set before NumPy loads (as the CLI does): next to JAX's own threads a
 # threaded OpenBLAS oversubscribes a small machine and stalls the fits' small dense solves
@@ -14,25 +16,53 @@ jax.config.update("jax_numpy_dtype_promotion", "standard")
 
 import pytest  # noqa: E402
 
+#: One persistent compilation cache for the whole session (``$DIFFGUIDE_TEST_JAX_CACHE`` to keep
+#: one between runs; by default a fresh folder, removed at the end, so that every run compiles
+#: every program once). A module's compiled programs are freed after it (below), and the next
+#: module that lowers the same program reads XLA's executable back instead of compiling it again.
+#: Programs with host callbacks (equinox's checks under ``EQX_ON_ERROR=raise``) are never
+#: stored by JAX: those compile as before. The executables are those XLA compiles (JAX keys
+#: the cache by the lowered program, the compile options, the backend and the versions).
+_KEEP_CACHE = bool(os.environ.get("DIFFGUIDE_TEST_JAX_CACHE"))
+_SESSION_CACHE = os.environ.get("DIFFGUIDE_TEST_JAX_CACHE") or tempfile.mkdtemp(
+    prefix="diffguide-test-jax-cache-")
 
-@pytest.fixture(autouse=True, scope="module")
-def _fresh_jax_after_each_module():
-    """Free each module's compiled programs, and forget JAX's persistent compilation cache.
 
-    - Every compiled XLA:CPU program holds its own memory mappings, and JAX keeps every program
-      it compiled for the life of the process. The whole suite in one process went past
-      Linux's limit on mappings per process (``vm.max_map_count``, 65530 by default) and died
-      with SIGSEGV inside XLA, twice at 77 % (once compiling, once serialising a program):
-      measured, four modules leave ~7 000 mappings behind without this, ~2 800 with it.
-    - A command line run in-process with ``--cache-dir`` points JAX's persistent cache at a
-      test's folder for the rest of the process; every module starts without one.
-    """
-    yield
-    jax.clear_caches()
-    gc.collect()
-    jax.config.update("jax_compilation_cache_dir", None)
-    try:  # the cache object JAX initialised from the folder (private: tolerate its absence)
+def _use_session_cache():
+    """Point JAX's persistent compilation cache at the session's folder, storing every program.
+
+    A command line run in-process with ``--cache-dir`` points the cache at a test's folder for
+    the rest of the process: this puts it back (and drops the cache object JAX initialised from
+    that folder, a private name whose absence is tolerated)."""
+    jax.config.update("jax_compilation_cache_dir", _SESSION_CACHE)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    try:
         from jax._src.compilation_cache import reset_cache
     except ImportError:  # pragma: no cover
         return
     reset_cache()
+
+
+_use_session_cache()
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if not _KEEP_CACHE:
+        shutil.rmtree(_SESSION_CACHE, ignore_errors=True)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _fresh_jax_after_each_module():
+    """Free each module's compiled programs; the session's compilation cache stays.
+
+    Every compiled XLA:CPU program holds its own memory mappings, and JAX keeps every program
+    it compiled for the life of the process. The whole suite in one process went past Linux's
+    limit on mappings per process (``vm.max_map_count``, 65530 by default) and died with SIGSEGV
+    inside XLA, twice at 77 % (once compiling, once serialising a program): measured, four
+    modules leave ~7 000 mappings behind without this, ~2 800 with it.
+    """
+    yield
+    jax.clear_caches()
+    gc.collect()
+    _use_session_cache()
