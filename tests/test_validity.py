@@ -154,3 +154,28 @@ def test_plausible_rails_raise_no_warning(tmp_path, capsys):
     _write_rails(tmp_path / "r.csv", s, 25 * (s * 1e-3 + (s * 1e-3) ** 2))
     rc, err = _simulate(tmp_path, tmp_path / "r.csv", capsys)
     assert rc == 0 and err == ""
+
+
+def test_rail_range_reports_the_departure_written_out_in_numpy():
+    """The batched rail check's figure equals the departure of the rail under every carriage
+    from its least-squares line, evaluated here sample by sample in NumPy from the sine."""
+    from diffguide.guideway.rails import SinusoidalRail, StraightRail
+    from diffguide.machine.majda2012 import majda2012_machine
+    from diffguide.machine.validity import rail_range
+
+    machine = majda2012_machine(nx=4, ny=2)
+    amp, wl = 80e-6, 0.031
+    rails = (SinusoidalRail(amp, wl), StraightRail())
+    x = np.array([-0.2, 0.0, 0.13])
+    xi = np.asarray(machine.carriage.xi, float)
+    worst = 0.0
+    for v in x:
+        for k, r in enumerate(machine.carriage_rail):
+            if r != 0:
+                continue
+            e = amp * np.sin(2 * np.pi * (v + float(machine.carriage_x[k]) + xi) / wl)
+            line = np.polyval(np.polyfit(xi, e, 1), xi)
+            worst = max(worst, float(np.max(np.abs(e - line))))
+    (w,) = rail_range(machine, rails, x)
+    assert w.code == "rail_beyond_contact_range"
+    assert f"{worst * 1e6:.4g} µm" in w.message
