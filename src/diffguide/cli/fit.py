@@ -35,7 +35,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "(rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um), fit.csv "
         "(every input row with fitted and residual, in its unit), layout.csv (the measured "
         "layout, for 'diffguide plan --start'), report.json, report.html (the metrologist's "
-        "report: straightness per rail with U, verdict, figures; one self-contained file), "
+        "report: straightness per rail with its 95 % interval, verdict, figures; one "
+        "self-contained file), "
         "posterior.json (the posterior, for 'diffguide predict'), "
         "profiles.png, curves.png. Exit codes: 0 converged; 3 results written but the fit did "
         "not converge (flagged in report.json); 2 bad input or options (nothing written).",
