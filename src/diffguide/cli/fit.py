@@ -468,7 +468,7 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
             files[POSTERIOR] = posterior_json_text(  # for diffguide predict
                 elastic, meas, preset=None if args.config else args.preset,
                 config=args.config, nx=args.nx, ny=args.ny,
-                x0_mm=_machine_x0(args, getattr(args, "input_info", {})))
+                x0_mm=_machine_x0(args, getattr(args, "input_info", {})), machine_cfg=cfg)
             report["total_seconds"] = time.perf_counter() - t_start
             files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
             staged.write(files)
