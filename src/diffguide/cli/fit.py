@@ -46,8 +46,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="machine model (majda2012: 1000 x 500 mm table, rails 340 mm apart)")
     p.add_argument("--measurements", required=True, action="append", metavar="FILE.csv",
                    help="measurement file (see above); repeat it for several files, merged into "
-                   "one data set (each reading keeps its file; a point at two places or a "
-                   "channel at two heights is refused naming both files)")
+                   "one data set (each reading keeps its file; a point at two places, a "
+                   "channel at two heights, or one file twice - by another path, a link or a "
+                   "copy - is refused naming both files)")
     p.add_argument("--measurements-format", dest="layout", choices=("auto", "long", "wide"),
                    default="auto",
                    help="layout of --measurements: long (one reading per row), wide (targets x "
