@@ -11,6 +11,7 @@ import csv
 import dataclasses
 import json
 import shutil
+from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -445,3 +446,23 @@ def test_predict_refuses_a_machine_changed_since_the_fit(fitted, tmp_path, capsy
     assert "warning: the machine file" in capsys.readouterr().err
     head = csv_out.read_text(encoding="utf-8").splitlines()[0]
     assert "WARNING" in head and "guideway.rail_y_mm" in head
+
+
+def test_an_imported_tables_files_are_in_the_fingerprint(tmp_path):
+    # an imported table is fingerprinted by its files' bytes, not by their paths: the same
+    # files elsewhere are the same machine; a changed matrix file is a changed machine
+    from diffguide.io.fit_posterior import machine_changes
+
+    src = Path(__file__).resolve().parents[1] / "data" / "examples" / "superelement"
+    a = load_config(src / "machine.toml")
+    shutil.copytree(src, tmp_path / "se")
+    b_path = tmp_path / "se" / "machine.toml"
+    snap = machine_snapshot(a)
+    files = snap["table_source"]["files"]
+    assert set(files) == {"plate.toml", "plate.dat", "plate_nodes.inp", "plate_held_loads.inp"}
+    assert machine_snapshot(load_config(b_path)) == snap
+    meta = {"machine": {"fingerprint": content_fingerprint(snap), "snapshot": snap}}
+    with open(tmp_path / "se" / "plate.dat", "a", encoding="utf-8") as fh:
+        fh.write("\n")
+    changes = machine_changes(meta, load_config(b_path))
+    assert len(changes) == 1 and changes[0].startswith("table_source.files.plate.dat: ")
