@@ -97,7 +97,7 @@ def say_straightness(args, report) -> None:
 
     st = report["straightness"]
     say(args, f"straightness, {st['reference_line']}; median and "
-              f"{st['coverage_probability']:.0%} interval of the fit's posterior draws:")
+              f"{st['coverage_probability'] * 100:g} % interval of the fit's posterior draws:")
     for line in straightness_lines(st):
         say(args, f"  {line}")
     say(args, verdict_line(st))

@@ -278,7 +278,7 @@ def metrologist_sections(fit, meas, s_m, *, rail_y_mm=None, tolerance_um=None,
                          "tolerance, fail if its lower end > tolerance, otherwise not "
                          "decidable; not decidable as well where the data carry no "
                          "information beyond the prior (every channel constant, or the draws' "
-                         f"spread at least {INFORMATIVE_RATIO:.0%} of the prior's)",
+                         f"spread at least {INFORMATIVE_RATIO * 100:g} % of the prior's)",
         "not_in_interval": (f"rail content shorter than about {2 * fit.basis.spacing * 1e3:.0f}"
                             " mm (two knot spacings) is not resolved and not in the interval"
                             + (f" (stated waviness {fit.waviness * 1e6:.3g} µm RMS)"

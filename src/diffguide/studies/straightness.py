@@ -218,8 +218,8 @@ def _reason(v, res, informative: bool, tolerance) -> str | None:
         return ("the data carry no information (every channel constant): the interval is the "
                 "prior's")
     if not res["informative"]:
-        return (f"the posterior draws' spread is {res['prior_ratio']:.0%} of the prior's: the "
-                "data carry no information on this profile beyond the prior")
+        return (f"the posterior draws' spread is {res['prior_ratio'] * 100:.0f} % of the "
+                "prior's: the data carry no information on this profile beyond the prior")
     t = tolerance * 1e6
     if v == "pass":
         return f"the 95 % interval's upper end {hi:.2f} µm <= {t:g} µm"
