@@ -161,3 +161,51 @@ def test_the_same_file_twice_is_refused_however_it_is_named(tmp_path, monkeypatc
     err = capsys.readouterr().err
     assert f"a.csv and {copy}: the same content" in err
     assert not (tmp_path / "o").exists()
+
+
+# ---- positions written in inches (4 decimals) or with other decimals are the same positions ----
+
+def _inch(mm: float) -> float:
+    """A position as a file in inches to 4 decimals gives it back, in mm."""
+    return round(mm / 25.4, 4) * 25.4
+
+
+def test_positions_from_an_inch_file_are_the_mm_files_positions(tmp_path):
+    """P1's level in mm and P5's interferometer converted from 4-decimal inches (up to 1.27 µm
+    off): one grid of positions, the mm file's, and a note saying so (was twice as many)."""
+    rows = _rows()
+    a = _write(tmp_path / "a.csv", [r for r in rows if r["point"] == "P1"])
+    b_rows = [{**r, "position_mm": f"{_inch(float(r['position_mm'])):.6f}"}
+              for r in rows if r["point"] == "P5"]
+    assert any(float(r["position_mm"]) != float(s["position_mm"])
+               for r, s in zip(b_rows, (r for r in rows if r["point"] == "P5")))
+    b = _write(tmp_path / "b.csv", b_rows)
+    notes: list = []
+    meas = read_any([a, b], notes=notes)
+    want = np.unique([float(r["position_mm"]) * 1e-3 for r in rows if r["point"] == "P1"])
+    np.testing.assert_array_equal(np.unique(meas.position), want)
+    assert any("taken as that one" in n and "µm" in n for n in notes), notes
+
+
+def test_the_stroke_end_takes_a_position_a_micrometre_beyond_and_names_one_further(tmp_path):
+    """A position 0.8 µm past the stroke's end (an inch file's rounding) is the end; 10 µm past
+    it is refused, the position written to 0.1 µm (was '-350 mm is outside ±350 mm')."""
+    from diffguide.cli import build_parser
+    from diffguide.cli.fit import _check_inputs
+    from diffguide.io.config import default_config
+
+    cfg = default_config()
+    rows = _rows()
+    args = build_parser().parse_args(["fit", "--preset", "majda2012", "--measurements",
+                                      str(DATA), "--out", str(tmp_path / "out")])
+    args.nx = args.ny = None  # the mesh as the command sets it from --mesh (the preset's)
+    for end, ok in ((350.0008, True), (350.01, False)):
+        path = _write(tmp_path / f"{end}.csv", [
+            {**r, "position_mm": str(end if float(r["position_mm"]) == 350 else
+                                     r["position_mm"])} for r in rows])
+        meas = read_any(path)
+        if ok:
+            _check_inputs(meas, args, cfg)
+        else:
+            with pytest.raises(ValueError, match=r"position 350\.0100 mm is outside"):
+                _check_inputs(meas, args, cfg)

@@ -161,6 +161,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 def _check_inputs(meas, args, cfg):
     """Points, positions and options checked against the machine actually used."""
+    from ..inverse.merge import POSITION_TOL
+
     name = args.config or args.preset
     half_l, half_w = cfg["table"]["length_mm"] / 2e3, cfg["table"]["width_mm"] / 2e3
     for pname, (x, y) in zip(meas.point_names, meas.points_xy):
@@ -169,12 +171,13 @@ def _check_inputs(meas, args, cfg):
                 f"{meas.source}: point {pname!r} at ({x * 1e3:g}, {y * 1e3:g}) mm is off the "
                 f"{name} table (|x| <= {half_l * 1e3:g}, |y| <= {half_w * 1e3:g} mm)")
     stroke = cfg["machine"]["stroke_mm"] * 1e-3
-    bad = np.abs(meas.position) > stroke / 2 + 1e-9
+    bad = np.abs(meas.position) > stroke / 2 + POSITION_TOL
     if bad.any():
         x = meas.position[bad][0]
         x0 = getattr(args, "input_info", {}).get("x0_mm", 0.0)
-        raise ValueError(f"{meas.source}: position {x * 1e3:g} mm is outside the {name} "
-                         f"stroke (±{stroke / 2 * 1e3:g} mm; x = X − x0 with x0 = {x0:g} mm: "
+        raise ValueError(f"{meas.source}: position {x * 1e3:.4f} mm is outside the {name} "
+                         f"stroke (±{stroke / 2 * 1e3:g} mm, to {POSITION_TOL * 1e6:g} µm; "
+                         f"x = X − x0 with x0 = {x0:g} mm: "
                          "for positions in machine coordinates give --x0-mm, the machine "
                          "coordinate of mid-stroke, or --x0-mm middle)")
     if len(np.unique(np.round(meas.position, 9))) < 4:

@@ -77,6 +77,48 @@ OUTLIER_Z = 6.0
 #: Most distinct table positions (to 1 µm) merged without confirmation: the paper-scale and
 #: ISO 230-2 layouts read tens to a few hundred (module docstring).
 MAX_POSITIONS = 1000
+#: Table positions closer than this (m) are one position (:func:`snap_positions`): a file in
+#: inches written to 4 decimals puts 350 mm at 13.7795 in = 349.9993 mm (the rounding of
+#: 0.0001 in is ±1.27 µm); measurement layouts space their positions by millimetres.
+POSITION_TOL = 5e-6
+
+
+def _roundness(x: float) -> int:
+    """Decimals (0..9) needed to write ``x`` (m) in mm: fewer for a position as a person wrote
+    it (350) than for one converted from inches (349.9993)."""
+    mm = x * 1e3
+    return next((d for d in range(10) if abs(mm - round(mm, d)) < 1e-9), 10)
+
+
+def snap_positions(readings, notes: list | None = None, source: str = "<readings>"):
+    """``readings`` with every position within :data:`POSITION_TOL` of another taken as one:
+    positions sorted, each cluster grows while the next is within the tolerance of its first;
+    the cluster's position is its member that is written with the fewest decimals in mm (the
+    smallest on a tie). A line in ``notes`` per data set where positions were snapped."""
+    import dataclasses
+
+    xs = sorted({float(r.position) for r in readings})
+    to: dict[float, float] = {}
+    i = 0
+    while i < len(xs):
+        j = i
+        while j + 1 < len(xs) and xs[j + 1] - xs[i] <= POSITION_TOL:
+            j += 1
+        members = xs[i:j + 1]
+        rep = min(members, key=lambda v: (_roundness(v), v))
+        to.update({v: rep for v in members})
+        i = j + 1
+    moved = [(x, rep) for x, rep in to.items() if x != rep]
+    if not moved:
+        return tuple(readings)
+    if notes is not None:
+        x, rep = max(moved, key=lambda m: abs(m[0] - m[1]))
+        notes.append(f"{source}: {len(moved)} table positions within {POSITION_TOL * 1e6:g} µm "
+                     f"of another taken as that one (the farthest: {x * 1e3:.6g} mm as "
+                     f"{rep * 1e3:.6g} mm; positions in inches, or files written with other "
+                     "decimals)")
+    return tuple(r if to[float(r.position)] == r.position
+                 else dataclasses.replace(r, position=to[float(r.position)]) for r in readings)
 
 
 def check_grid(readings, source: str, allow_many_positions: bool = False) -> None:
@@ -332,6 +374,7 @@ def merge_readings(readings, source: str = "<readings>", notes: list | None = No
     readings = tuple(readings)
     if not readings:
         raise ValueError(f"{source}: no measurements")
+    readings = snap_positions(readings, notes, source)
     check_grid(readings, source, allow_many_positions)
     names, xy = _points(readings)
     groups, rejected = _groups(readings, names)
