@@ -158,3 +158,27 @@ def test_xla_cpu_flags_only_for_measured_jaxlib_and_never_over_the_users(monkeyp
     monkeypatch.delenv("XLA_FLAGS")
     _common._set_xla_cpu_flags()
     assert "XLA_FLAGS" not in os.environ
+
+
+def test_a_second_run_reads_its_programs_back_without_xla_log_lines(tmp_path):
+    """Two fresh processes set up as the command line is, each compiling and running one small
+    program: the second reads it from the cache folder, and neither prints XLA's C++ log (on
+    CPUs whose compiler tuning flags are not among the host's detected features, XLA logs two
+    "could lead to SIGILL" error lines per executable read back; a warning line on every CPU).
+    The second run's stdout shows it was read back (one file in the folder, the same bits)."""
+    code = (
+        "import argparse, os\n"
+        "from diffguide.cli._common import prepare_runtime\n"
+        "prepare_runtime(argparse.Namespace(cache_dir=None, no_cache=False))\n"
+        "import jax, jax.numpy as jnp\n"
+        "f = jax.jit(lambda x: jnp.sin(x) @ x + 1.0)\n"
+        "print(float(f(jnp.eye(3) * 0.5)[0, 0]).hex())\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "TF_CPP_MIN_LOG_LEVEL"}
+    env["DIFFGUIDE_CACHE_DIR"] = str(tmp_path / "cache")
+    runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           check=True, env=env) for _ in range(2)]
+    assert runs[0].stdout == runs[1].stdout
+    assert list((tmp_path / "cache").glob("jit_*-cache"))
+    for r in runs:
+        assert "cpu_aot_loader" not in r.stderr and "pjrt_executable" not in r.stderr, r.stderr

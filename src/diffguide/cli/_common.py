@@ -222,8 +222,13 @@ def prepare_runtime(args):
         _set_xla_cpu_flags()
     folder = cache_dir(args)
     if folder is not None and not jax_was_loaded:
-        # XLA logs a warning line for every executable read from the cache
-        os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
+        # XLA logs a line for every executable read from the cache: a warning ("Assume version
+        # compatibility"), and on CPUs whose compiler tuning flags (+prefer-no-gather,
+        # +prefer-no-scatter: tuning, not instructions) are not among the host's detected
+        # features, two error lines per executable that "this could lead to SIGILL" (XLA's
+        # cpu_aot_loader; openxla/xla issue 44565): a second `diffguide fit` printed 18 of
+        # them. Python's errors and warnings are not affected (XLA's C++ log only).
+        os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
     import jax
 
     _one_line_cache_warnings(folder)
