@@ -141,6 +141,20 @@ def test_html_is_self_contained_and_matches_the_json(fitted):
     assert not [p for p in out.iterdir() if p.name.startswith("_")]  # staging figures gone
 
 
+def test_html_states_what_each_file_says_of_itself(fitted):
+    """Instrument serials, dates, temperatures, operator and machine S/N that a file's profile
+    or metadata lines read (report.json's measurements.files[].metadata) are on the page."""
+    out, _ = fitted
+    rep = json.loads((out / "report.json").read_text())
+    rep["measurements"]["files"][0]["metadata"] = {
+        "instrument serial": "WY-<12345>", "date": "2026-11-02", "temperature_C": 20.4,
+        "operator": "J. Kowalski", "machine S/N": "VMC-0815"}
+    text = report_html(rep)
+    for needle in ("instrument serial", "WY-&lt;12345&gt;", "2026-11-02", "temperature_C",
+                   "20.4", "J. Kowalski", "machine S/N", "VMC-0815"):
+        assert needle in text, needle
+
+
 def test_console_says_the_same(fitted):
     out, console = fitted
     st = json.loads((out / "report.json").read_text())["straightness"]

@@ -5,6 +5,7 @@ that say the same in the same words (:func:`straightness_lines`, :func:`verdict_
 
 import base64
 import html
+import json
 
 from .fit_report import undetermined_lines
 
@@ -188,9 +189,15 @@ def _stamp(report: dict) -> str:
         rows.append(("layout read", st["layout"]))
     if st.get("x0_mm") is not None:
         rows.append(("machine coordinate of x = 0", f"{st['x0_mm']:g} mm"))
+    meta = {f.get("file"): f.get("metadata") or {}
+            for f in report.get("measurements", {}).get("files", [])}
     for f in st["files"]:
         rows.append(("measurement file", f["file"]))
         rows += [("  header", line) for line in f["header"]]
+        # what the file states of itself (instrument serials, dates, temperatures, operator,
+        # machine serial number, ... as its profile or metadata lines read them): traceability
+        rows += [(f"  {key}", value if isinstance(value, str) else json.dumps(value))
+                 for key, value in meta.get(f["file"], {}).items()]
     rows += [("reading note", n) for n in st.get("reading_notes", [])]
     m = report["measurements"]
     rows.append(("readings", f"{m['readings']} readings merged into {m['merged_rows']} values"))
