@@ -95,12 +95,18 @@ def main(argv=None):
         load0=load0,
         load1=bench_cli._load(),
     )
-    text = a.page.read_text(encoding="utf-8")
-    pattern = re.compile(re.escape(BEGIN) + ".*?" + re.escape(END), re.S)
-    if not pattern.search(text):
-        sys.exit(f"{a.page}: no {BEGIN} ... {END} markers")
-    a.page.write_text(pattern.sub(lambda _: table, text), encoding="utf-8")
+    write_between(a.page, BEGIN, END, table)
     print(table)
+
+
+def write_between(page: Path, begin: str, end: str, block: str) -> None:
+    """Replace the text of ``page`` from the marker ``begin`` to ``end`` (both included; the
+    ``block`` carries them) by ``block``; exit naming the page if the markers are missing."""
+    text = page.read_text(encoding="utf-8")
+    pattern = re.compile(re.escape(begin) + ".*?" + re.escape(end), re.S)
+    if not pattern.search(text):
+        sys.exit(f"{page}: no {begin} ... {end} markers")
+    page.write_text(pattern.sub(lambda _: block, text), encoding="utf-8")
 
 
 if __name__ == "__main__":

@@ -74,11 +74,9 @@ def main(argv=None):
     seconds, summary = per_module(a.log.read_text(encoding="utf-8", errors="replace"))
     table = render(seconds, summary, a.log.name)
     if not a.print:
-        text = a.page.read_text(encoding="utf-8")
-        pattern = re.compile(re.escape(BEGIN) + ".*?" + re.escape(END), re.S)
-        if not pattern.search(text):
-            sys.exit(f"{a.page}: no {BEGIN} ... {END} markers")
-        a.page.write_text(pattern.sub(lambda _: table, text), encoding="utf-8")
+        from make_table import write_between
+
+        write_between(a.page, BEGIN, END, table)
     print(table)
 
 
