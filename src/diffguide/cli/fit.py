@@ -2,7 +2,6 @@
 
 import argparse
 import json
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -10,7 +9,6 @@ from pathlib import Path
 import numpy as np
 
 from ._common import check_tolerances, say
-from ._interrupt import checkpoint
 
 PRESETS = ("majda2012",)
 #: Exit code when the results are written but the elastic fit did not converge.
@@ -256,64 +254,6 @@ def _jsonable(obj):
     return jsonable(obj)
 
 
-def _check_out(out: Path) -> Path:
-    """``out`` resolved; refuse to replace a folder that is not an earlier fit output."""
-    out = out.resolve()
-    if out.exists() and (not out.is_dir() or (any(out.iterdir())
-                                              and not (out / "report.json").exists())):
-        raise ValueError(f"--out {out}: exists and is not an earlier fit output folder; "
-                         "refusing to replace it")
-    return out
-
-
-class _Staging:
-    """The output folder, written into a temporary folder next to ``out`` and swapped into
-    place by :meth:`commit` with no gap (:func:`diffguide._core.atomic.replace_dir`: ``out``
-    names the earlier folder or the new one at every instant); on an exception inside the
-    ``with`` block the temporary folder is removed, and a killed run's is removed by the next
-    run (:func:`diffguide._core.atomic.remove_leftovers`). A Ctrl-C, even one whose
-    ``KeyboardInterrupt`` was lost, stops the run before staging and before the commit
-    (:mod:`._interrupt`)."""
-
-    def __init__(self, out: Path):
-        from .._core.atomic import staging_dir
-
-        self.out = _check_out(out)
-        checkpoint()
-        self.tmp = staging_dir(self.out)
-
-    def __enter__(self) -> "_Staging":
-        return self
-
-    def __exit__(self, kind, *exc) -> None:
-        if kind is not None:
-            shutil.rmtree(self.tmp, ignore_errors=True)
-
-    def write(self, files: dict[str, object]) -> None:
-        """``files``: {name: text or matplotlib figure}."""
-        for name, content in files.items():
-            if isinstance(content, str):
-                (self.tmp / name).write_text(content, encoding="utf-8")
-            else:
-                content.savefig(self.tmp / name, dpi=110)
-
-    def commit(self) -> None:
-        """Swap the staged folder in, unless a Ctrl-C came (then ``KeyboardInterrupt``, and
-        the earlier folder stays); a Ctrl-C during the swap is held until it is done."""
-        from .._core.atomic import interrupts_deferred, replace_dir
-
-        with interrupts_deferred():
-            checkpoint()
-            replace_dir(self.tmp, self.out)
-
-
-def _write_dir(out: Path, files: dict[str, object]) -> None:
-    """Write ``files`` ({name: text or figure}) into ``out`` at once (:class:`_Staging`)."""
-    with _Staging(out) as staged:
-        staged.write(files)
-        staged.commit()
-
-
 def run(args) -> int:
     from ..inverse import MachineFamily
     from ..io.config import spec_from_config
@@ -322,7 +262,6 @@ def run(args) -> int:
     from ._common import machine_config
 
     t_start = time.perf_counter()
-    _check_out(Path(args.out))
     cfg = machine_config(args)
     spec = spec_from_config(cfg)
     info: dict = {}
@@ -442,8 +381,9 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
     from ..io.fit_report import fit_report
     from ..plotting.render import FigureWorker
     from . import _report
+    from ._outputs import output_folder
 
-    with _Staging(Path(args.out)) as staged:
+    with output_folder(args, "fit") as staged:
         figures = getattr(args, "figures", None) or FigureWorker()
         plots = {} if args.no_plots else _figures(meas, fits, profiles, s_m, truth)
         try:
@@ -576,7 +516,7 @@ def _export_spec(args):
 
 
 def _figures(meas, fits, profiles, s_m, truth):
-    """The two figures, as jobs for :func:`_write_dir` (drawn on bare ``Figure`` objects with
+    """The two figures, as jobs for the output folder (drawn on bare ``Figure`` objects with
     fixed margins: :mod:`diffguide.plotting.fit`)."""
     from ..io.measurements import QUANTITIES
     from ..plotting.render import FigureJob

@@ -3,7 +3,6 @@
 import argparse
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -350,10 +349,10 @@ def run(args) -> int:
     from ..io.config import spec_from_config
     from ..io.plan_files import plan_csv, plan_report
     from ._common import machine_config
-    from .fit import _check_out, _jsonable, _write_dir
+    from ._outputs import write_dir
+    from .fit import _jsonable
 
     t_start = time.perf_counter()
-    _check_out(Path(args.out))
     _check(args)
     cfg = machine_config(args)
     spec = spec_from_config(cfg)
@@ -405,7 +404,7 @@ def run(args) -> int:
         files.update(_figures(result, cfg, compare))
     report["total_seconds"] = time.perf_counter() - t_start
     files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
-    _write_dir(Path(args.out), files)
+    write_dir(args, "plan", files)
     say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
     return 0
 
