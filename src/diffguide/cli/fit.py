@@ -60,7 +60,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="merge a file with more than 1000 distinct table positions (refused "
                    "otherwise: thousands, nearly one per reading, is what swapped position and "
                    "value columns look like)")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder (replaced)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder: new, empty, or an earlier output of this "
+                   "command (replaced); any other non-empty folder, or '.', is refused")
     p.add_argument("--knot-spacing-mm", type=float, default=None,
                    help="B-spline knot spacing of the profiles (mm); default: the carriage's "
                    "loaded length (48 mm for majda2012)")

@@ -57,7 +57,9 @@ def _add_machine_arguments(p) -> None:
         metavar="MACHINE.toml",
         help="machine configuration file (TOML); overrides --preset",
     )
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder (replaced)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder: new, empty, or an earlier output of this "
+                   "command (replaced); any other non-empty folder, or '.', is refused")
 
 
 def _add_instrument_arguments(p) -> None:
