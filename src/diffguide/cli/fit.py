@@ -498,10 +498,9 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
 
 
 def _check_export_options(args) -> None:
-    """``--axis-side`` parses, and a format whose tables need it has it (before the fit)."""
-    from ..studies.exports import parse_axis_side
-
-    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
+    """``--axis-side`` parses, the file's name fits in the table, and a format whose tables
+    need the side has it (before the fit)."""
+    side = _export_spec(args).axis_side
     if args.comp_format == "siemens-cec" and not side:
         raise ValueError("--format siemens-cec needs --axis-side (tool, workpiece or "
                          "Y=...,Z=...): the sign of the EYX/EZX tables depends on it")
@@ -509,12 +508,9 @@ def _check_export_options(args) -> None:
 
 def _export_spec(args):
     """The export format with its options (:class:`diffguide.studies.exports.ExportSpec`)."""
-    from ..studies.exports import ExportSpec, parse_axis_side
+    from ..studies.exports import file_spec
 
-    base = Path(args.export_compensation)
-    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
-    return ExportSpec(args.comp_format, axis_side=side, table_name=base.stem.upper(),
-                      file_name=base.name)
+    return file_spec(args.comp_format, args.export_compensation, args.axis_side)
 
 
 def _figures(meas, fits, profiles, s_m, truth):

@@ -195,10 +195,11 @@ def _field_plot(args, name, machine, je, positions, say) -> None:
 
 
 def _check_export(args) -> None:
-    """``--axis-side`` parses, and ``siemens-cec`` has it (before anything is written)."""
-    from ..studies.exports import parse_axis_side
+    """``--axis-side`` parses, the file's name fits in the table, and ``siemens-cec`` has the
+    side (before anything is written)."""
+    from ..studies.exports import file_spec
 
-    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
+    side = file_spec(args.comp_format, args.export_compensation, args.axis_side).axis_side
     if args.comp_format == "siemens-cec" and not side:
         raise ValueError(
             "--format siemens-cec needs --axis-side (tool, workpiece or "
@@ -214,15 +215,12 @@ def _compensation(args, name, je, errs, positions, say) -> None:
 
     from ..io.atomic import atomic_write_text
     from ..studies.compensation import location_warnings
-    from ..studies.exports import ExportSpec, export_compensation, parse_axis_side
+    from ..studies.exports import export_compensation, file_spec
 
     what = f"rails {args.rails}" if args.rails else f"variant {args.variant}"
     j = list(je.point_names).index(args.at)
     base = Path(args.export_compensation)
-    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
-    spec = ExportSpec(
-        args.comp_format, axis_side=side, table_name=base.stem.upper(), file_name=base.name
-    )
+    spec = file_spec(args.comp_format, base, args.axis_side)
     files = export_compensation(
         spec,
         positions * 1e3,

@@ -12,8 +12,11 @@ import os
 
 import numpy as np
 
+from .._core.comments import CommentSyntax
 from ..machine.errors import error_columns
 from .csvtable import number, read_table
+
+_COMMENT = CommentSyntax("#", ascii_only=False)  # the header's "#" lines (UTF-8)
 
 
 def read_points_file(path: str | os.PathLike) -> dict[str, tuple[float, float]]:
@@ -72,8 +75,8 @@ def prediction_csv_text(pred, source: str = "", x0_mm: float | None = None) -> s
             if pred.lead else "no EXX data were fitted: EXX holds no lead error (the model's "
             "elastic part only)")
     head = [
-        f"# diffguide predict: joint errors of the X axis at points of the table; {source}"
-        .rstrip("; "),
+        _COMMENT.lines([f"diffguide predict: joint errors of the X axis at points of the "
+                        f"table; {source}".rstrip("; ")])[0],
         "# units: position, x, y in mm; EXX EYX EZX and their sigma in um; EAX (roll) EBX "
         "(pitch) ECX (yaw) and their sigma in urad (um/m)",
         f"# signs: ISO 230-1 errors (a controller compensates by their negatives), relative to "
