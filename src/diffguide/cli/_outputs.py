@@ -8,7 +8,6 @@ it, or a folder diffguide did not write), and the leftovers of killed runs besid
 from pathlib import Path
 
 from .._core.atomic import MIN_FREE_BYTES, check_output_file, check_output_place, remove_leftovers
-from ..io.outdir import OutputFolder, check_output_dir
 from ._interrupt import checkpoint
 
 #: command -> the destinations (argparse ``dest``) of its output files
@@ -38,6 +37,8 @@ def check_outputs(args, command: str, need_bytes: int = MIN_FREE_BYTES) -> None:
                 continue
             flag = "--" + dest.replace("_", "-")
             if kind == "dir":
+                from ..io.outdir import check_output_dir  # here: --help imports no JAX
+
                 check_output_dir(path, command, flag)  # its own message, naming flag and path
             try:
                 if kind == "file":
@@ -49,10 +50,12 @@ def check_outputs(args, command: str, need_bytes: int = MIN_FREE_BYTES) -> None:
                 remove_leftovers(path)
 
 
-def output_folder(args, command: str) -> OutputFolder:
+def output_folder(args, command: str):
     """``args.out`` as ``command``'s output folder, staged and committed at once
     (:class:`diffguide.io.outdir.OutputFolder`), stopped by a Ctrl-C before staging and
     before the swap (:func:`._interrupt.checkpoint`)."""
+    from ..io.outdir import OutputFolder
+
     return OutputFolder(Path(args.out), command, "--out", checkpoint=checkpoint)
 
 
