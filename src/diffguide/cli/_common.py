@@ -11,6 +11,8 @@ import sys
 import warnings
 from pathlib import Path
 
+from .._core.limits import MAX_MESH_DIVISIONS
+
 PRESETS = ("majda2012",)
 
 # One OpenBLAS thread for NumPy and SciPy (and JAX's CPU LAPACK kernels, which call SciPy's):
@@ -134,8 +136,9 @@ def parse_mesh_text(text: str) -> tuple[int, int]:
         nx, ny = (int(v) for v in parts)
     except ValueError:
         raise ValueError(f"--mesh must be NXxNY with integers, e.g. 20x10, got {text!r}") from None
-    if nx < 1 or ny < 1:
-        raise ValueError(f"--mesh: both divisions must be >= 1, got {text!r}")
+    if not (1 <= nx <= MAX_MESH_DIVISIONS and 1 <= ny <= MAX_MESH_DIVISIONS):
+        raise ValueError(f"--mesh: both divisions must be in 1..{MAX_MESH_DIVISIONS}, got "
+                         f"{text!r}")
     return nx, ny
 
 

@@ -4,6 +4,7 @@ import argparse
 
 import numpy as np
 
+from .._core.limits import MAX_MESH_DIVISIONS, MAX_POSITIONS, check_range
 from ._common import add_machine_arguments, check_tolerances, machine_config
 
 
@@ -20,6 +21,8 @@ def parse_positions(text: str) -> np.ndarray:
         ) from None
     if count < 2 or not np.isfinite(start) or not np.isfinite(stop) or stop <= start:
         raise ValueError(f"--positions needs STOP > START and COUNT >= 2, got {text!r}")
+    check_range(count, 2, MAX_POSITIONS, f"--positions {text}: COUNT",
+                "about 10 kB of memory and 20 ms per position")
     return np.linspace(start, stop, count) * 1e-3
 
 
@@ -49,8 +52,8 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--positions",
         default=None,
-        help="table positions START:STOP:COUNT (mm); default: the machine's whole stroke at 71 "
-        "positions",
+        help="table positions START:STOP:COUNT (mm; COUNT at most 100000); default: the "
+        "machine's whole stroke at 71 positions",
     )
     p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
     p.add_argument("--mesh", help="table mesh NXxNY (elements); default from the machine (20x10)")
@@ -129,8 +132,8 @@ def parse_mesh(text: str) -> tuple[int, int]:
         nx, ny = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise ValueError(f"--mesh must be NXxNY (e.g. 20x10), got {text!r}") from None
-    if not (1 <= nx <= 200 and 1 <= ny <= 200):
-        raise ValueError(f"--mesh divisions must be in 1..200, got {text!r}")
+    if not (1 <= nx <= MAX_MESH_DIVISIONS and 1 <= ny <= MAX_MESH_DIVISIONS):
+        raise ValueError(f"--mesh divisions must be in 1..{MAX_MESH_DIVISIONS}, got {text!r}")
     return nx, ny
 
 

@@ -44,6 +44,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.limits import MAX_REDUCED_DOFS
 from .._core.rigid import rigid_transfer, skew
 from .condense import CondensedTable
 
@@ -85,6 +86,8 @@ class ReducedMatrix(eqx.Module):
             raise ValueError(f"{self.source}: f must have {n} entries, got {np.shape(self.f)}")
         if len(set(self.dofs)) != n:
             raise ValueError(f"{self.source}: a retained (node, dof) appears twice")
+        if n > MAX_REDUCED_DOFS:
+            raise ValueError(f"{self.source}: {n} retained DOF; allowed 1..{MAX_REDUCED_DOFS}")
         for node, d in self.dofs:
             if not 1 <= d <= 6:
                 raise ValueError(f"{self.source}: node {node} has DOF {d}; allowed 1..6")

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core.limits import MAX_MESH_DIVISIONS, check_range
 from ..guideway.rails import JOINT_WIDTH
 from ..inverse.predict import FitPosterior
 
@@ -84,6 +85,10 @@ def read_fit_posterior(folder) -> tuple[FitPosterior, dict]:
             raise ValueError("non-finite coefficients or covariance")
         meta = {"points_m": {n: (float(x), float(y)) for n, (x, y) in d["points_m"].items()},
                 "machine": dict(d["machine"]), "x0_mm": d.get("x0_mm")}
+        for key in ("nx", "ny"):  # before a machine of that mesh is built
+            v = meta["machine"].get(key)
+            if v is not None:
+                check_range(v, 1, MAX_MESH_DIVISIONS, f"machine.{key} (the fit's table mesh)")
     except (KeyError, TypeError, ValueError, json.JSONDecodeError) as exc:
         raise ValueError(f"{path}: malformed ({type(exc).__name__}: {exc})") from None
     return post, meta
