@@ -204,3 +204,14 @@ def test_atomic_write_to_a_folder_leaves_no_temporary_file(tmp_path):
     with pytest.raises(IsADirectoryError):
         atomic.atomic_write(tmp_path, lambda tmp: Path(tmp).write_text("x"))
     assert list(tmp_path.iterdir()) == [] and not list(tmp_path.parent.glob(f".{tmp_path.name}*"))
+
+
+def test_an_export_inside_the_fit_folder_is_refused_before_the_work(tmp_path, monkeypatch,
+                                                                   capsys):
+    """It would be a file the folder's marker does not list: the next fit would refuse."""
+    _forbid_run(monkeypatch, "fit")
+    out = tmp_path / "res"
+    assert main([*_argv("fit", out), "--export-compensation", str(out / "comp.mpf")]) == 2
+    err = capsys.readouterr().err
+    assert f"--export-compensation {out / 'comp.mpf'}: inside the output folder --out" in err
+    assert list(tmp_path.iterdir()) == []

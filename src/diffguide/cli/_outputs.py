@@ -48,6 +48,25 @@ def check_outputs(args, command: str, need_bytes: int = MIN_FREE_BYTES) -> None:
                 raise ValueError(f"{flag} {path}: {exc}; nothing done") from None
             if kind == "dir":
                 remove_leftovers(path)
+    _check_files_outside_folders(args, command)
+
+
+def _check_files_outside_folders(args, command: str) -> None:
+    """An output file inside an output folder of the same command would be an unlisted file
+    there (the folder is replaced whole, and then refused as holding a file diffguide did not
+    write): refused before the work."""
+    for dir_dest in OUTPUT_DIRS.get(command, ()):
+        folder = getattr(args, dir_dest, None)
+        if not folder:
+            continue
+        folder = Path(folder).resolve()
+        for dest in OUTPUT_FILES.get(command, ()):
+            path = getattr(args, dest, None)
+            if path and folder in Path(path).resolve().parents:
+                flag, dir_flag = "--" + dest.replace("_", "-"), "--" + dir_dest.replace("_", "-")
+                raise ValueError(f"{flag} {path}: inside the output folder {dir_flag} "
+                                 f"{getattr(args, dir_dest)}, which is replaced whole; write it "
+                                 "elsewhere (nothing done)")
 
 
 def output_folder(args, command: str):
