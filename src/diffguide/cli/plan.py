@@ -213,7 +213,7 @@ def _sites(args, cfg) -> dict:
 
         return retained_points(cfg)
     try:
-        nx, ny = parse_mesh_text(args.grid)
+        nx, ny = parse_mesh_text(args.grid, most=400)
     except ValueError:
         raise ValueError(
             f"--grid must be NXxNY with integers >= 1, e.g. 7x3, got {args.grid!r}"
