@@ -43,6 +43,7 @@ def read_marker(folder: str | os.PathLike) -> dict | None:
     except (OSError, ValueError):
         return None
     if (not isinstance(data, dict) or not isinstance(data.get("command"), str)
+            or not data["command"].isascii() or not data["command"].isalpha()
             or not isinstance(data.get("files"), list)
             or not all(isinstance(f, str) and f and "/" not in f and f not in (".", "..")
                        for f in data["files"])):
