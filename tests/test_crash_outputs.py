@@ -193,14 +193,16 @@ def _swallowed_sigint():
 @pytest.mark.parametrize("when", ["before_commit", "after_commit"])
 def test_a_swallowed_ctrl_c_still_exits_130_without_committing(tmp_path, capsys, monkeypatch,
                                                                when):
-    from diffguide.cli import fit
+    from diffguide.cli import _outputs, fit
+    from diffguide.io import outdir
 
     out = tmp_path / "out"
     out.mkdir()
     (out / "report.json").write_text('"previous"')
+    (out / outdir.MARKER).write_text(outdir.marker_text("fit", ["report.json"]))
 
     def run(args):
-        with fit._Staging(Path(args.out)) as staged:
+        with _outputs.output_folder(args, "fit") as staged:
             staged.write({"report.json": '"new"'})
             if when == "before_commit":
                 _swallowed_sigint()

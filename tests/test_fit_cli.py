@@ -233,11 +233,12 @@ def test_output_folder_has_the_usual_permissions(tmp_path):
     """The staged folder (made 0700 by mkdtemp) ends with the permissions the umask gives a
     new folder, like one made by ``mkdir``."""
     import os
+    from types import SimpleNamespace
 
-    from diffguide.cli.fit import _write_dir
+    from diffguide.cli._outputs import write_dir
 
     (tmp_path / "ref").mkdir()
-    _write_dir(tmp_path / "out", {"a.txt": "x\n"})
+    write_dir(SimpleNamespace(out=tmp_path / "out"), "fit", {"a.txt": "x\n"})
     mode = (tmp_path / "out").stat().st_mode & 0o777
     assert mode == (tmp_path / "ref").stat().st_mode & 0o777, oct(mode)
     assert (tmp_path / "out" / "a.txt").read_text() == "x\n"

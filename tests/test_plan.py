@@ -295,6 +295,7 @@ def test_cli_writes_the_plan_and_refuses_bad_input(tmp_path, capsys):
     )
     assert rc == 0
     assert sorted(p.name for p in out.iterdir()) == [
+        ".diffguide-output.json",  # the marker: what diffguide plan wrote there
         "plan.csv",
         "plan.png",
         "report.json",

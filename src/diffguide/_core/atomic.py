@@ -36,6 +36,8 @@ def atomic_write(path: str | os.PathLike, write: Callable[[str], None]) -> Path:
     same. On any error the temporary file is removed and the error raised.
     """
     path = Path(path)
+    if path.is_dir() or not path.name:  # else a temporary file left in its parent (even /)
+        raise IsADirectoryError(errno.EISDIR, "is a folder; a file name is needed", str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
     os.close(fd)
@@ -119,7 +121,8 @@ def staging_dir(out: str | os.PathLike, kind: str = "tmp") -> Path:
                                  dir=out.parent))
 
 
-def replace_dir(new: str | os.PathLike, out: str | os.PathLike) -> None:
+def replace_dir(new: str | os.PathLike, out: str | os.PathLike,
+                discard: Callable[[Path], None] | None = None) -> None:
     """Put the complete folder ``new`` in place of ``out`` (``new`` is consumed), so that
     ``out`` names the previous folder or the new one at every instant, never neither.
 
@@ -130,10 +133,11 @@ def replace_dir(new: str | os.PathLike, out: str | os.PathLike) -> None:
     ``.<name>.<pid>.<random>.old`` beside it (which :func:`remove_leftovers` removes later). A
     Ctrl-C (SIGINT) never splits the swap: it is held until the swap is done
     (:func:`interrupts_deferred`). The folder gets the usual permissions (``mkdtemp``'s are 0700).
+    ``discard(previous)`` disposes of the previous folder, swapped out (default: removed whole).
     """
     new, out = Path(new), Path(out)
     os.chmod(new, usual_mode(0o777))
-    old = None
+    old = wrapper = None
     with interrupts_deferred():
         try:
             os.rename(new, out)  # no earlier folder (an empty one is replaced here too)
@@ -143,11 +147,19 @@ def replace_dir(new: str | os.PathLike, out: str | os.PathLike) -> None:
             if exchange(new, out):
                 old = new
             else:
-                old = staging_dir(out, "old")
-                os.rename(out, old / out.name)
+                wrapper = staging_dir(out, "old")
+                old = wrapper / out.name
+                os.rename(out, old)
                 os.rename(new, out)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+    if old is None:
+        return
+    if discard is None:
+        shutil.rmtree(wrapper or old, ignore_errors=True)
+        return
+    discard(old)
+    if wrapper is not None:
+        with contextlib.suppress(OSError):
+            wrapper.rmdir()
 
 
 def _owner_alive(pid: int) -> bool:
@@ -199,6 +211,16 @@ def remove_leftovers(out: str | os.PathLike, max_age_s: float = LEFTOVER_AGE_S) 
         if not os.path.lexists(path):
             removed.append(path)
     return removed
+
+
+def check_output_file(path: str | os.PathLike) -> Path:
+    """``path`` as an output file: refused (``ValueError``) where it names a folder (an existing
+    one, ``.``, ``..``, or a path ending in a separator)."""
+    text = os.fspath(path)
+    if (not text or text.endswith(os.sep) or Path(text).name in ("", ".", "..")
+            or os.path.isdir(text)):
+        raise ValueError("is a folder; a file name is needed")
+    return Path(text)
 
 
 def check_output_place(path: str | os.PathLike, need_bytes: int = MIN_FREE_BYTES) -> Path:

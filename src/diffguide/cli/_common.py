@@ -11,6 +11,8 @@ import sys
 import warnings
 from pathlib import Path
 
+from .._core.limits import MAX_MESH_DIVISIONS
+
 PRESETS = ("majda2012",)
 
 # One OpenBLAS thread for NumPy and SciPy (and JAX's CPU LAPACK kernels, which call SciPy's):
@@ -127,15 +129,15 @@ def machine_spec(args):
     return spec_from_config(machine_config(args))
 
 
-def parse_mesh_text(text: str) -> tuple[int, int]:
-    """``"20x10"`` → ``(20, 10)``; a clear ``ValueError`` otherwise."""
+def parse_mesh_text(text: str, most: int = MAX_MESH_DIVISIONS) -> tuple[int, int]:
+    """``"20x10"`` → ``(20, 10)``, each in ``1..most``; a clear ``ValueError`` otherwise."""
     parts = str(text).lower().replace("×", "x").split("x")
     try:
         nx, ny = (int(v) for v in parts)
     except ValueError:
         raise ValueError(f"--mesh must be NXxNY with integers, e.g. 20x10, got {text!r}") from None
-    if nx < 1 or ny < 1:
-        raise ValueError(f"--mesh: both divisions must be >= 1, got {text!r}")
+    if not (1 <= nx <= most and 1 <= ny <= most):
+        raise ValueError(f"--mesh: both divisions must be in 1..{most}, got {text!r}")
     return nx, ny
 
 

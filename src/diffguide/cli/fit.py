@@ -2,7 +2,6 @@
 
 import argparse
 import json
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -10,7 +9,6 @@ from pathlib import Path
 import numpy as np
 
 from ._common import check_tolerances, say
-from ._interrupt import checkpoint
 
 PRESETS = ("majda2012",)
 #: Exit code when the results are written but the elastic fit did not converge.
@@ -64,7 +62,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="merge a file with more than 1000 distinct table positions (refused "
                    "otherwise: thousands, nearly one per reading, is what swapped position and "
                    "value columns look like)")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder (replaced)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder: new, empty, or an earlier output of this "
+                   "command (replaced); any other non-empty folder, or '.', is refused")
     p.add_argument("--knot-spacing-mm", type=float, default=None,
                    help="B-spline knot spacing of the profiles (mm); default: the carriage's "
                    "loaded length (48 mm for majda2012)")
@@ -261,64 +261,6 @@ def _jsonable(obj):
     return jsonable(obj)
 
 
-def _check_out(out: Path) -> Path:
-    """``out`` resolved; refuse to replace a folder that is not an earlier fit output."""
-    out = out.resolve()
-    if out.exists() and (not out.is_dir() or (any(out.iterdir())
-                                              and not (out / "report.json").exists())):
-        raise ValueError(f"--out {out}: exists and is not an earlier fit output folder; "
-                         "refusing to replace it")
-    return out
-
-
-class _Staging:
-    """The output folder, written into a temporary folder next to ``out`` and swapped into
-    place by :meth:`commit` with no gap (:func:`diffguide._core.atomic.replace_dir`: ``out``
-    names the earlier folder or the new one at every instant); on an exception inside the
-    ``with`` block the temporary folder is removed, and a killed run's is removed by the next
-    run (:func:`diffguide._core.atomic.remove_leftovers`). A Ctrl-C, even one whose
-    ``KeyboardInterrupt`` was lost, stops the run before staging and before the commit
-    (:mod:`._interrupt`)."""
-
-    def __init__(self, out: Path):
-        from .._core.atomic import staging_dir
-
-        self.out = _check_out(out)
-        checkpoint()
-        self.tmp = staging_dir(self.out)
-
-    def __enter__(self) -> "_Staging":
-        return self
-
-    def __exit__(self, kind, *exc) -> None:
-        if kind is not None:
-            shutil.rmtree(self.tmp, ignore_errors=True)
-
-    def write(self, files: dict[str, object]) -> None:
-        """``files``: {name: text or matplotlib figure}."""
-        for name, content in files.items():
-            if isinstance(content, str):
-                (self.tmp / name).write_text(content, encoding="utf-8")
-            else:
-                content.savefig(self.tmp / name, dpi=110)
-
-    def commit(self) -> None:
-        """Swap the staged folder in, unless a Ctrl-C came (then ``KeyboardInterrupt``, and
-        the earlier folder stays); a Ctrl-C during the swap is held until it is done."""
-        from .._core.atomic import interrupts_deferred, replace_dir
-
-        with interrupts_deferred():
-            checkpoint()
-            replace_dir(self.tmp, self.out)
-
-
-def _write_dir(out: Path, files: dict[str, object]) -> None:
-    """Write ``files`` ({name: text or figure}) into ``out`` at once (:class:`_Staging`)."""
-    with _Staging(out) as staged:
-        staged.write(files)
-        staged.commit()
-
-
 def run(args) -> int:
     from ..inverse import MachineFamily
     from ..io.config import spec_from_config
@@ -327,7 +269,6 @@ def run(args) -> int:
     from ._common import machine_config
 
     t_start = time.perf_counter()
-    _check_out(Path(args.out))
     cfg = machine_config(args)
     spec = spec_from_config(cfg)
     info: dict = {}
@@ -447,8 +388,9 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
     from ..io.fit_report import fit_report
     from ..plotting.render import FigureWorker
     from . import _report
+    from ._outputs import output_folder
 
-    with _Staging(Path(args.out)) as staged:
+    with output_folder(args, "fit") as staged:
         figures = getattr(args, "figures", None) or FigureWorker()
         plots = {} if args.no_plots else _figures(meas, fits, profiles, s_m, truth)
         try:
@@ -561,10 +503,9 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
 
 
 def _check_export_options(args) -> None:
-    """``--axis-side`` parses, and a format whose tables need it has it (before the fit)."""
-    from ..studies.exports import parse_axis_side
-
-    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
+    """``--axis-side`` parses, the file's name fits in the table, and a format whose tables
+    need the side has it (before the fit)."""
+    side = _export_spec(args).axis_side
     if args.comp_format == "siemens-cec" and not side:
         raise ValueError("--format siemens-cec needs --axis-side (tool, workpiece or "
                          "Y=...,Z=...): the sign of the EYX/EZX tables depends on it")
@@ -572,16 +513,13 @@ def _check_export_options(args) -> None:
 
 def _export_spec(args):
     """The export format with its options (:class:`diffguide.studies.exports.ExportSpec`)."""
-    from ..studies.exports import ExportSpec, parse_axis_side
+    from ..studies.exports import file_spec
 
-    base = Path(args.export_compensation)
-    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
-    return ExportSpec(args.comp_format, axis_side=side, table_name=base.stem.upper(),
-                      file_name=base.name)
+    return file_spec(args.comp_format, args.export_compensation, args.axis_side)
 
 
 def _figures(meas, fits, profiles, s_m, truth):
-    """The two figures, as jobs for :func:`_write_dir` (drawn on bare ``Figure`` objects with
+    """The two figures, as jobs for the output folder (drawn on bare ``Figure`` objects with
     fixed margins: :mod:`diffguide.plotting.fit`)."""
     from ..io.measurements import QUANTITIES
     from ..plotting.render import FigureJob

@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 
+from .._core.limits import MAX_SAMPLES, MAX_STUDY_BYTES, check_range, gigabytes
 from ._common import add_machine_arguments
 from .simulate import default_positions, parse_mesh, parse_positions
 
@@ -36,8 +37,8 @@ def add_study_arguments(p) -> None:
                    help="mounting tolerance class of rail 2 relative to rail 1 (parallelism, "
                    "height difference; size-25 catalogue values)")
     p.add_argument("--positions", default=None,
-                   help="table positions START:STOP:COUNT (mm); default: the machine's whole "
-                   "stroke at 71 positions")
+                   help="table positions START:STOP:COUNT (mm; COUNT at most 100000); default: "
+                   "the machine's whole stroke at 71 positions")
     p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
     p.add_argument("--mesh", default=None,
                    help="table mesh NXxNY (elements); default the machine's own (majda2012: "
@@ -62,7 +63,8 @@ def add_parser(sub) -> None:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     add_machine_arguments(p)
-    p.add_argument("--samples", type=int, default=1000, help="number of random rail pairs")
+    p.add_argument("--samples", type=int, default=1000,
+                   help=f"number of random rail pairs (1..{MAX_SAMPLES})")
     p.add_argument("--rail-rms-um", type=float, default=5.0,
                    help="RMS straightness deviation σ of each rail and plane (µm)")
     add_study_arguments(p)
@@ -106,8 +108,7 @@ class _Progress:
 
 
 def _check(args) -> None:
-    if not 1 <= args.samples <= 10_000_000:
-        raise ValueError(f"--samples must be in 1..10000000, got {args.samples}")
+    check_range(args.samples, 1, MAX_SAMPLES, "--samples", "about 4 kB of memory per sample")
     if not (np.isfinite(args.rail_rms_um) and 0 <= args.rail_rms_um <= 1e4):
         raise ValueError(f"--rail-rms-um must be in 0..10000 µm, got {args.rail_rms_um}")
     check_study(args)
@@ -168,6 +169,19 @@ def split_cpu_into_devices(n: int | None = None) -> bool:
     return True
 
 
+def _check_size(n: int, n_coeffs: int, corr_mm: float) -> None:
+    """Refuse a study whose rails and results would exceed ``MAX_STUDY_BYTES``, before they are
+    drawn (a short correlation length needs more spline coefficients per rail)."""
+    from ..studies.random_rails import study_bytes
+
+    need = study_bytes(n, n_coeffs)
+    if need > MAX_STUDY_BYTES:
+        most = MAX_STUDY_BYTES // study_bytes(1, n_coeffs)
+        raise ValueError(f"--samples {n} with --corr-mm {corr_mm:g} (rails of {n_coeffs} spline "
+                         f"coefficients per rail and plane) need about {gigabytes(need)}; allowed "
+                         f"up to {most} samples at this --corr-mm ({gigabytes(MAX_STUDY_BYTES)})")
+
+
 def study_setup(args, rms: float, say):
     """The machine, positions (m), rail model (RMS ``rms``, m) and knots of a random-rails
     study from its command line (:func:`add_study_arguments`): ``(name, machine, positions,
@@ -202,6 +216,7 @@ def study_setup(args, rms: float, say):
     knots = default_knots(model.correlation_length)
     if lo < knots[0] or hi > knots[0] + (knots[2] - 3) * knots[1]:
         knots = default_knots(model.correlation_length, start=lo - 0.05, end=hi + 0.05)
+    _check_size(max(args.samples, getattr(args, "check_samples", 0)), knots[2], args.corr_mm)
     if args.rigid_table:
         machine = machine.with_rigid_table()
     return name, machine, positions, model, knots

@@ -3,7 +3,6 @@
 import argparse
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -58,7 +57,9 @@ def _add_machine_arguments(p) -> None:
         metavar="MACHINE.toml",
         help="machine configuration file (TOML); overrides --preset",
     )
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder (replaced)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder: new, empty, or an earlier output of this "
+                   "command (replaced); any other non-empty folder, or '.', is refused")
 
 
 def _add_instrument_arguments(p) -> None:
@@ -212,7 +213,7 @@ def _sites(args, cfg) -> dict:
 
         return retained_points(cfg)
     try:
-        nx, ny = parse_mesh_text(args.grid)
+        nx, ny = parse_mesh_text(args.grid, most=400)
     except ValueError:
         raise ValueError(
             f"--grid must be NXxNY with integers >= 1, e.g. 7x3, got {args.grid!r}"
@@ -350,10 +351,10 @@ def run(args) -> int:
     from ..io.config import spec_from_config
     from ..io.plan_files import plan_csv, plan_report
     from ._common import machine_config
-    from .fit import _check_out, _jsonable, _write_dir
+    from ._outputs import write_dir
+    from .fit import _jsonable
 
     t_start = time.perf_counter()
-    _check_out(Path(args.out))
     _check(args)
     cfg = machine_config(args)
     spec = spec_from_config(cfg)
@@ -405,7 +406,7 @@ def run(args) -> int:
         files.update(_figures(result, cfg, compare))
     report["total_seconds"] = time.perf_counter() - t_start
     files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
-    _write_dir(Path(args.out), files)
+    write_dir(args, "plan", files)
     say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
     return 0
 

@@ -38,8 +38,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--points", metavar="FILE.csv",
                    help="points file: point,x_mm,y_mm (added to --point)")
     p.add_argument("--positions-mm", metavar="START:STOP:N",
-                   help="table positions (mm, inclusive, N >= 2); default the measured range at "
-                   "71 positions")
+                   help="table positions (mm, inclusive, 2 <= N <= 100000; positions x points "
+                   "at most what fits 2 GB of σ Jacobians, which the message states); default "
+                   "the measured range at 71 positions")
     p.add_argument("--positions", metavar="FILE.csv", dest="positions_file",
                    help="positions file: position_mm (instead of --positions-mm)")
     p.add_argument("--extrapolate", action="store_true",
@@ -94,6 +95,13 @@ def _positions(args, post) -> np.ndarray:
     return np.linspace(*post.position_range, 71)
 
 
+def _positions_option(args) -> str:
+    """The option that gave the positions, with its value, for a message."""
+    if args.positions_file:
+        return f"--positions {args.positions_file}"
+    return f"--positions-mm {args.positions_mm}" if args.positions_mm else "the measured range"
+
+
 def _machine_spec(args, meta: dict):
     """The fitted machine's specification, its builder for ``predict`` (``None`` for the
     plate; :func:`diffguide.io.table_source.machine_builder`) and a note of what changed in
@@ -119,7 +127,7 @@ def _machine_spec(args, meta: dict):
 
 
 def run(args) -> int:
-    from ..inverse.predict import predict
+    from ..inverse.predict import check_size, predict
     from ..io.atomic import atomic_write_text
     from ..io.fit_posterior import read_fit_posterior
     from ..io.prediction_csv import prediction_csv_text
@@ -132,6 +140,8 @@ def run(args) -> int:
         warn(line)
     points = _points(args)
     x = _positions(args, post)
+    check_size(len(x), len(set(points) | set(meta["points_m"])), post.cov.shape[0],
+               _positions_option(args))
     spec, make_machine, changed = _machine_spec(args, meta)
     m = meta["machine"]
     pred = predict(post, spec, points, x, measured_points=meta["points_m"], nx=m.get("nx"),

@@ -4,6 +4,7 @@ import argparse
 
 import numpy as np
 
+from .._core.limits import MAX_MESH_DIVISIONS, MAX_POSITIONS, check_range
 from ._common import add_machine_arguments, check_tolerances, machine_config
 
 
@@ -20,6 +21,8 @@ def parse_positions(text: str) -> np.ndarray:
         ) from None
     if count < 2 or not np.isfinite(start) or not np.isfinite(stop) or stop <= start:
         raise ValueError(f"--positions needs STOP > START and COUNT >= 2, got {text!r}")
+    check_range(count, 2, MAX_POSITIONS, f"--positions {text}: COUNT",
+                "about 10 kB of memory and 20 ms per position")
     return np.linspace(start, stop, count) * 1e-3
 
 
@@ -50,8 +53,8 @@ def add_parser(sub) -> None:
         "--positions",
         default=None,
         help="table positions x START:STOP:COUNT (mm, from mid-stroke; not machine "
-        "coordinates: --machine-x0-mm does not shift them); default: the machine's whole "
-        "stroke at 71 positions",
+        "coordinates: --machine-x0-mm does not shift them; COUNT at most 100000); default: "
+        "the machine's whole stroke at 71 positions",
     )
     p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
     p.add_argument("--mesh", help="table mesh NXxNY (elements); default from the machine (20x10)")
@@ -132,8 +135,8 @@ def parse_mesh(text: str) -> tuple[int, int]:
         nx, ny = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise ValueError(f"--mesh must be NXxNY (e.g. 20x10), got {text!r}") from None
-    if not (1 <= nx <= 200 and 1 <= ny <= 200):
-        raise ValueError(f"--mesh divisions must be in 1..200, got {text!r}")
+    if not (1 <= nx <= MAX_MESH_DIVISIONS and 1 <= ny <= MAX_MESH_DIVISIONS):
+        raise ValueError(f"--mesh divisions must be in 1..{MAX_MESH_DIVISIONS}, got {text!r}")
     return nx, ny
 
 
@@ -198,10 +201,11 @@ def _field_plot(args, name, machine, je, positions, say) -> None:
 
 
 def _check_export(args) -> None:
-    """``--axis-side`` parses, and ``siemens-cec`` has it (before anything is written)."""
-    from ..studies.exports import parse_axis_side
+    """``--axis-side`` parses, the file's name fits in the table, and ``siemens-cec`` has the
+    side (before anything is written)."""
+    from ..studies.exports import file_spec
 
-    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
+    side = file_spec(args.comp_format, args.export_compensation, args.axis_side).axis_side
     if args.comp_format == "siemens-cec" and not side:
         raise ValueError(
             "--format siemens-cec needs --axis-side (tool, workpiece or "
@@ -217,15 +221,12 @@ def _compensation(args, name, je, errs, positions, say) -> None:
 
     from ..io.atomic import atomic_write_text
     from ..studies.compensation import location_warnings
-    from ..studies.exports import ExportSpec, export_compensation, parse_axis_side
+    from ..studies.exports import export_compensation, file_spec
 
     what = f"rails {args.rails}" if args.rails else f"variant {args.variant}"
     j = list(je.point_names).index(args.at)
     base = Path(args.export_compensation)
-    side = None if args.axis_side is None else parse_axis_side(args.axis_side)
-    spec = ExportSpec(
-        args.comp_format, axis_side=side, table_name=base.stem.upper(), file_name=base.name
-    )
+    spec = file_spec(args.comp_format, base, args.axis_side)
     files = export_compensation(
         spec,
         positions * 1e3,

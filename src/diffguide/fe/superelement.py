@@ -44,12 +44,19 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.limits import MAX_REDUCED_DOFS
 from .._core.rigid import rigid_transfer, skew
 from .condense import CondensedTable
 
 #: Relative tolerance of the rigid-body check: ``‖K Φ‖ ≤ tol ‖K‖ ‖Φ‖`` (a free-floating
 #: table's reduced stiffness has the six rigid motions in its null space).
 RIGID_TOL = 1e-6
+#: Largest magnitude accepted in K (SI: N/m, N/rad, N·m/rad) and f (N, N·m). A machine table's
+#: stiffness is ~1e8-1e10 N/m and a penalty tie's a few decades above; 1e30 is far beyond any
+#: physical value, yet the products of a few entries that the condensation, the rigid-body
+#: check and the solves form stay far below the overflow (~1.8e308) that would turn them into
+#: inf and NaN (and a NaN passes a comparison that should fail).
+MAX_ENTRY = 1e30
 
 
 class ReducedMatrix(eqx.Module):
@@ -79,15 +86,33 @@ class ReducedMatrix(eqx.Module):
             raise ValueError(f"{self.source}: f must have {n} entries, got {np.shape(self.f)}")
         if len(set(self.dofs)) != n:
             raise ValueError(f"{self.source}: a retained (node, dof) appears twice")
+        if n > MAX_REDUCED_DOFS:
+            raise ValueError(f"{self.source}: {n} retained DOF; allowed 1..{MAX_REDUCED_DOFS}")
         for node, d in self.dofs:
             if not 1 <= d <= 6:
                 raise ValueError(f"{self.source}: node {node} has DOF {d}; allowed 1..6")
         K = np.asarray(self.K)
-        if not np.all(np.isfinite(K)):
-            raise ValueError(f"{self.source}: K holds non-finite values")
+        self._check_entries(K, "K")
+        self._check_entries(np.asarray(self.f), "f")
         scale = np.abs(K).max() if K.size else 0.0
         if np.abs(K - K.T).max(initial=0.0) > 1e-8 * scale:
             raise ValueError(f"{self.source}: K is not symmetric")
+
+    def _check_entries(self, a: np.ndarray, name: str) -> None:
+        """``ValueError`` naming the file and the first entry of ``a`` (``K`` or ``f``) that is
+        not finite or exceeds :data:`MAX_ENTRY` in magnitude (SI)."""
+        with np.errstate(invalid="ignore"):
+            bad = ~(np.abs(a) <= MAX_ENTRY)  # NaN included
+        if not bad.any():
+            return
+        where = np.argwhere(bad)[0]
+        dofs = " and ".join(f"node {self.dofs[i][0]} DOF {self.dofs[i][1]}" for i in where)
+        index = ",".join(str(i + 1) for i in where)
+        raise ValueError(
+            f"{self.source}: {name}[{index}] ({dofs}) = {a[tuple(where)]:g}"
+            + (f" (and {int(bad.sum()) - 1} more)" if bad.sum() > 1 else "")
+            + f": every entry must be finite and at most {MAX_ENTRY:g} in magnitude (SI); "
+            "a larger one is not a stiffness and overflows the solves")
 
     def index(self, node: int, dof: int, what: str) -> int:
         """Row of ``(node, dof)``; ``KeyError`` naming ``what`` if it is not retained."""
@@ -255,9 +280,12 @@ def check_rigid_modes(rm: ReducedMatrix, coords: Mapping[int, Sequence[float]],
     for i, (node, d) in enumerate(rm.dofs):
         xyz = _coords(coords, node, "the rigid-body check", rm.source)
         Phi[i] = rigid_transfer(xyz, np)[d - 1]
-    K = np.asarray(rm.K)
-    ratio = float(np.linalg.norm(K @ Phi) / (np.linalg.norm(K) * np.linalg.norm(Phi)))
-    if ratio > tol:
+    K = np.asarray(rm.K, float)
+    scale = np.abs(K).max(initial=0.0)
+    with np.errstate(all="ignore"):
+        Ks = K / scale  # the ratio is scale-free; scaled, its norms cannot overflow
+        ratio = float(np.linalg.norm(Ks @ Phi) / (np.linalg.norm(Ks) * np.linalg.norm(Phi)))
+    if not ratio <= tol:  # NaN (a zero, non-finite or overflowing matrix) fails too
         raise ValueError(
             f"{rm.source}: the matrix does not leave the table's rigid motions free "
             f"(‖KΦ‖/‖K‖‖Φ‖ = {ratio:.2e} > {tol:.0e}): a DOF is constrained, the node "

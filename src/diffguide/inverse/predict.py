@@ -52,6 +52,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import mm_hint
+from .._core.limits import MAX_PREDICTION_BYTES, gigabytes
 from ..guideway.rails import JOINT_WIDTH, bspline_matrix
 from ..machine.build import build_machine
 from ..machine.errors import to_user
@@ -172,6 +173,21 @@ class Prediction:
     def user_units(self) -> tuple[np.ndarray, np.ndarray]:
         """``(errors, sigma)`` in µm and µrad (:func:`diffguide.machine.errors.to_user`)."""
         return to_user(self.errors), to_user(self.sigma)
+
+
+def check_size(n_positions: int, n_points: int, n_unknowns: int, what: str = "") -> None:
+    """Refuse (``ValueError``, after ``what``: the option or file that asked) a prediction whose
+    Jacobians (``n_positions × n_points × 6 × n_unknowns``, three copies) would exceed
+    :data:`~diffguide._core.limits.MAX_PREDICTION_BYTES`, before anything is allocated."""
+    per_row = 3 * 8 * 6 * max(int(n_unknowns), 1)
+    need = int(n_positions) * int(n_points) * per_row
+    if need > MAX_PREDICTION_BYTES:
+        rows = MAX_PREDICTION_BYTES // per_row
+        raise ValueError(
+            f"{what + ': ' if what else ''}{n_positions} positions x {n_points} points "
+            f"(the fit's measured points included) need about {gigabytes(need)} for the σ (the "
+            f"Jacobian in the fit's {n_unknowns} unknowns); allowed: positions x points up to "
+            f"{rows} ({gigabytes(MAX_PREDICTION_BYTES)}): give fewer positions or points")
 
 
 def check_positions(positions, position_range, extrapolate: bool) -> np.ndarray:
@@ -328,6 +344,7 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
             raise ValueError(f"point {k!r} is a measured point at ({allp[k][0] * 1e3:g}, "
                              f"{allp[k][1] * 1e3:g}) mm: give the new point another name")
         allp[k] = v
+    check_size(len(x), len(allp), post.cov.shape[0])
     machine = _machine(spec, allp, nx, ny, post.structure, 0.0, make_machine)
     sel = [list(allp).index(k) for k in pts]
     z = _check_z(z)

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core.limits import MAX_MESH_DIVISIONS, check_range
 from ..guideway.rails import JOINT_WIDTH
 from ..inverse.predict import FitPosterior
 
@@ -366,9 +367,13 @@ def _machine(d: dict, fmt: str) -> dict:
             raise _Bad(f"field 'machine.{key}' must be a string or null, got {_kind(m[key])}")
     if (m.get("preset") is None) == (m.get("config") is None):
         raise _Bad("field 'machine' must name exactly one of 'preset' and 'config'")
-    for key in ("nx", "ny"):
+    for key in ("nx", "ny"):  # before a machine of that mesh is built
         if m.get(key) is not None:
-            _int(m, key, f"machine.{key}", lo=1)
+            v = _int(m, key, f"machine.{key}", lo=1)
+            try:
+                check_range(v, 1, MAX_MESH_DIVISIONS, f"machine.{key} (the fit's table mesh)")
+            except ValueError as exc:
+                raise _Bad(str(exc)) from None
     if fmt == FORMAT:
         _field(m, "fingerprint", str, "machine.fingerprint")
         _field(m, "snapshot", dict, "machine.snapshot")

@@ -12,8 +12,12 @@ import os
 
 import numpy as np
 
+from .._core.comments import CommentSyntax
+from .._core.limits import MAX_POSITIONS
 from ..machine.errors import error_columns
-from .csvtable import number, read_table
+from .csvtable import iter_rows, number, read_table, read_text
+
+_COMMENT = CommentSyntax("#", ascii_only=False)  # the header's "#" lines (UTF-8)
 
 
 def read_points_file(path: str | os.PathLike) -> dict[str, tuple[float, float]]:
@@ -37,8 +41,12 @@ def read_points_file(path: str | os.PathLike) -> dict[str, tuple[float, float]]:
 def read_positions_file(path: str | os.PathLike) -> np.ndarray:
     """Table positions (m) from a ``position_mm`` CSV."""
     name = os.fspath(path)
-    x = [number(row, "position_mm", name, line, "mm") * 1e-3
-         for line, row in read_table(path, ("position_mm",))]
+    x = []
+    for line, row in iter_rows(read_text(path), name, ("position_mm",)):
+        if len(x) == MAX_POSITIONS:
+            raise ValueError(f"{name}:{line}: more than {MAX_POSITIONS} positions (allowed "
+                             f"1..{MAX_POSITIONS}: about 10 kB of memory per position)")
+        x.append(number(row, "position_mm", name, line, "mm") * 1e-3)
     if not x:
         raise ValueError(f"{name}: no positions (expected position_mm rows)")
     return np.asarray(x)
@@ -72,8 +80,8 @@ def prediction_csv_text(pred, source: str = "", x0_mm: float | None = None) -> s
             if pred.lead else "no EXX data were fitted: EXX holds no lead error (the model's "
             "elastic part only)")
     head = [
-        f"# diffguide predict: joint errors of the X axis at points of the table; {source}"
-        .rstrip("; "),
+        _COMMENT.lines([f"diffguide predict: joint errors of the X axis at points of the "
+                        f"table; {source}".rstrip("; ")])[0],
         "# units: position, x, y in mm; EXX EYX EZX and their sigma in um; EAX (roll) EBX "
         "(pitch) ECX (yaw) and their sigma in urad (um/m)",
         f"# signs: ISO 230-1 errors (a controller compensates by their negatives), relative to "

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core.limits import MAX_REDUCED_DOFS
 from ..fe.superelement import ReducedMatrix
 
 
@@ -62,6 +63,17 @@ def _number(text: str, path, line, field: str) -> float:
     if not np.isfinite(value):
         _fail(path, line, f"field {field}: {text.strip()!r} is not finite")
     return value
+
+
+_WHY_DOFS = ("a dense matrix of n x n values; a table reduced to its carriages, nut and "
+             "control points retains a few hundred")
+
+
+def _check_size(n: int, path, line) -> int:
+    """``n`` retained DOF, refused beyond :data:`MAX_REDUCED_DOFS` before the matrix exists."""
+    if n > MAX_REDUCED_DOFS:
+        _fail(path, line, f"{n} retained DOF: allowed 1..{MAX_REDUCED_DOFS} ({_WHY_DOFS})")
+    return n
 
 
 def _int(text: str, path, line, field: str, lo: int = 1, hi: int | None = None) -> int:
@@ -97,6 +109,9 @@ def read_user_element_matrix(path: str | os.PathLike, *, length_unit: float = 1.
             if not m:
                 _fail(path, k, "*USER ELEMENT needs NODES=<number of positions>")
             n_pos, header = int(m.group(1)), k
+            if n_pos > MAX_REDUCED_DOFS:
+                _fail(path, k, f"NODES={n_pos}: at most {MAX_REDUCED_DOFS} retained DOF "
+                               f"({_WHY_DOFS})")
         elif up.startswith("**ELEMENTNODES"):
             in_nodes = True
         elif s.startswith("**"):
@@ -134,7 +149,7 @@ def read_user_element_matrix(path: str | os.PathLike, *, length_unit: float = 1.
     if dofs_at and dofs_at[0] is None:
         _fail(path, header, "no active-DOF data lines after *USER ELEMENT")
     dofs = tuple((nodes[p], d) for p in range(n_pos) for d in dofs_at[p])
-    n = len(dofs)
+    n = _check_size(len(dofs), path, header)
     values: list[float] = []
     for ln in range(k + 1, len(lines) + 1):
         s = lines[ln - 1].strip()
@@ -232,7 +247,7 @@ def read_dmig(path: str | os.PathLike, name: str | None = None, *,
         if d == 0:
             _fail(path, None, f"node {node} component 0 (a scalar point) is not a table DOF")
     index = {k: i for i, k in enumerate(keys)}
-    n = len(keys)
+    n = _check_size(len(keys), path, ln)
     K = np.zeros((n, n))
     for (row, col), v in entries.items():
         K[index[row], index[col]] = v
@@ -309,6 +324,7 @@ def reduced_from_reactions(path: str | os.PathLike, dofs, *, gravity_step: bool 
     value}``, :func:`read_cload`) gives those, a rigid footprint's as the wrench at its REF /
     ROT node. SI with ``length_unit`` (m per file unit)."""
     dofs = tuple((int(a), int(b)) for a, b in dofs)
+    _check_size(len(dofs), path, None)
     steps = read_ccx_reactions(path)
     need = len(dofs) + (1 if gravity_step else 0)
     if len(steps) != need:

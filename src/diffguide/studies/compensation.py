@@ -19,10 +19,13 @@ compensates by moving by their negatives.
 
 import numpy as np
 
+from .._core.comments import CommentSyntax
 from .._core.rigid import transfer
 from ..machine.errors import ERROR_UNITS as _UNITS
 from ..machine.errors import error_columns
 from ..machine.kinematics import ERROR_NAMES
+
+_COMMENT = CommentSyntax("#", ascii_only=False)  # its header: "#" lines, UTF-8
 
 
 def compensation_table(positions_mm, errors_user, point_names, at: str, source: str = "") -> str:
@@ -40,7 +43,7 @@ def compensation_table(positions_mm, errors_user, point_names, at: str, source: 
     j = list(point_names).index(at)
     head = [
         "# diffguide compensation table (ISG-style axis error table for the X axis)",
-        f"# point {at}; {source}".rstrip("; "),
+        *_COMMENT.lines([f"point {at}; {source}".rstrip("; ")]),
         "# values are errors (ISO 230-1 signs) relative to the reference position;",
         "# the controller compensates by their negatives. Units: X in mm, EXX EYX EZX in µm,",
         "# EAX (roll) EBX (pitch) ECX (yaw) in µrad (µm/m).",

@@ -226,6 +226,18 @@ def linear_coefficients(start: float, spacing: float, n_coeffs: int, a, b):
     return a + (b - a) * t
 
 
+#: memory (bytes) of one sample beyond its rails: its statistics, columns and CSV row (measured
+#: ~3 kB for the nine points of majda2012, with a margin)
+SAMPLE_OUTPUT_BYTES = 4096
+
+
+def study_bytes(n_samples: int, n_coeffs: int) -> int:
+    """About the memory (bytes) a study of ``n_samples`` random rail pairs holds at once: each
+    sample's rails (two rails, two planes, ``n_coeffs`` float64 coefficients each) and its
+    outputs (:data:`SAMPLE_OUTPUT_BYTES`)."""
+    return int(n_samples) * (2 * 2 * int(n_coeffs) * 8 + SAMPLE_OUTPUT_BYTES)
+
+
 def sample_rails(
     rng: np.random.Generator | int,
     n_samples: int,

@@ -29,7 +29,9 @@ Formats (``FORMATS``; sources in each module and in docs/compensation-exports.md
   *experimental*; no straightness (:mod:`.fanuc`).
 """
 
+import os
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -55,6 +57,20 @@ AXIS_SIDE_HELP = (
     "tables: tool, workpiece (Y and Z alike) or Y=workpiece,Z=tool (X carries the workpiece)")
 _WRITERS = {"isg": isg.write, "siemens-cec": siemens.write, "heidenhain": heidenhain.write,
             "fanuc": fanuc.write}
+
+
+def file_spec(fmt: str, path: str | os.PathLike, axis_side: str | None = None) -> ExportSpec:
+    """The :class:`ExportSpec` of an export written to ``path`` (the command line's
+    ``--export-compensation``): the table named after the file (its stem, upper case), the
+    file's name on the configuration lines, ``axis_side`` as :func:`parse_axis_side` reads it.
+    ``ValueError`` naming the file where its name cannot be written into the table."""
+    path = Path(path)
+    side = None if axis_side is None else parse_axis_side(axis_side)
+    try:
+        return ExportSpec(fmt, axis_side=side, table_name=path.stem.upper(), file_name=path.name)
+    except ValueError as exc:
+        raise ValueError(f"--export-compensation {path}: the file's name is written into the "
+                         f"table: {exc}") from None
 
 
 def export_compensation(

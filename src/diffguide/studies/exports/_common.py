@@ -15,10 +15,13 @@ This assumes that each axis counts positive along diffguide's +X, +Y, +Z (as ``X
 does for X); an axis counting the other way flips its sign.
 """
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from ..._core.comments import CommentSyntax
 
 SIDES = ("tool", "workpiece")
 #: The compensating axis of each cross-axis error of the X axis.
@@ -52,6 +55,38 @@ class ExportSpec:
     reference_mm: float | None = None
     first_number: int = 0
     detection_unit_mm: float = 0.001
+
+    def __post_init__(self):
+        """The names the format writes outside its comments, checked (:func:`check_name`)."""
+        if self.format == "siemens-cec":
+            for axis, name in dict(self.axis_names).items():
+                check_name(name, f"axis_names[{axis!r}]", AXIS_NAME)
+        if self.format == "heidenhain":
+            check_name(self.table_name, "table_name", TABLE_NAME)
+        if self.format == "isg" and self.file_name:
+            check_name(self.file_name, "file_name", FILE_NAME)
+
+
+#: the comment syntax of each file that holds comments (the .note.txt is plain text)
+CSV_COMMENT = CommentSyntax("#", ascii_only=False)  # diffguide's own CSV (UTF-8)
+ISG_COMMENT = CommentSyntax("//", reserved="#")  # '#' is ISG CSV's file break
+LIS_COMMENT = CommentSyntax("#")
+CEC_COMMENT = CommentSyntax(";")
+FANUC_COMMENT = CommentSyntax("#")
+NOTE_TEXT = CommentSyntax("", ascii_only=False)
+
+#: names written on live lines (outside comments), refused rather than escaped otherwise
+AXIS_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # a SINUMERIK axis identifier
+TABLE_NAME = re.compile(r"[A-Za-z0-9_-]+")  # a TNC table name (NAME.COM)
+FILE_NAME = re.compile(r"[A-Za-z0-9_.+-]+")  # a file name on an ISG configuration line
+
+
+def check_name(value, what: str, pattern: re.Pattern) -> str:
+    """``value`` where ``pattern`` matches all of it, else ``ValueError`` naming ``what``."""
+    if not isinstance(value, str) or not pattern.fullmatch(value):
+        raise ValueError(f"{what} must match {pattern.pattern} (it is written outside a "
+                         f"comment in the controller's file), got {value!r}")
+    return value
 
 
 def sides(axis_side) -> dict[str, str]:

@@ -24,7 +24,7 @@ documentation.
 
 import numpy as np
 
-from ._common import equidistant_step, header_lines, lead_line
+from ._common import FANUC_COMMENT, equidistant_step, header_lines, lead_line
 
 EXPERIMENTAL = ("a setting sheet for the parameter screen, not a punch tape (the tape numbering "
                 "of pitch data was not confirmed)")
@@ -68,6 +68,6 @@ def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[s
              f"3623 = {mag}   (magnification)",
              f"3624 = {round(interval)}   (interval, detection units = {step:g} mm)",
              "pitch error compensation data: point number, X (mm), value"]
-    out = [f"# {h}" for h in head]
+    out = FANUC_COMMENT.lines(head)
     out += [f"{n} {x:.4f} {v}" for n, x, v in zip(numbers, X, inc)]
     return {"": "\n".join(out) + "\n"}

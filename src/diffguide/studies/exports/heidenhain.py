@@ -24,7 +24,7 @@ angular errors need the KinematicsComp option, whose ``.COM`` layout was not con
 
 import numpy as np
 
-from ._common import CROSS_AXES, header_lines, lead_line, sides, sign
+from ._common import CROSS_AXES, NOTE_TEXT, header_lines, lead_line, sides, sign
 
 EXPERIMENTAL = ("the table frame BEGIN/[END] of .COM and .CMA is assumed from the TNC's other "
                 "tables, not confirmed")
@@ -65,4 +65,4 @@ def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[s
              "axes only (KinematicsComp needed)",
              f"save the table as {name}.COM and the assignment as CONFIG.CMA (or enter the line "
              "in the machine's .CMA); the TNC tables have no comment lines, hence this note"]
-    return {"": com, ".cma": cma, ".note.txt": "\n".join(head) + "\n"}
+    return {"": com, ".cma": cma, ".note.txt": "\n".join(NOTE_TEXT.lines(head)) + "\n"}

@@ -18,17 +18,19 @@ in the chain and counts as a workpiece axis.
 
 import numpy as np
 
-from ._common import header_lines, sides
+from ._common import ISG_COMMENT, LIS_COMMENT, header_lines, sides
 
 
 def config(known, file_name="") -> str:
     """The volumetric compensation configuration lines (``#`` comments) for these sides."""
-    lines = ["# diffguide: configuration lines for the ISG volumetric compensation (TF5280)",
-             "# X carries the workpiece (diffguide's table), so it comes first in the chain"]
+    lines = LIS_COMMENT.lines([
+        "diffguide: configuration lines for the ISG volumetric compensation (TF5280)",
+        "X carries the workpiece (diffguide's table), so it comes first in the chain"])
     if len(known) < 2:
-        lines += ["# the side of Y and/or Z was not given (axis_side, CLI --axis-side): set "
-                  "workpiece_axes to 1 + the number of Y, Z axes on the workpiece side",
-                  "# chain XYZ", "# workpiece_axes ?"]
+        lines += LIS_COMMENT.lines([
+            "the side of Y and/or Z was not given (axis_side, CLI --axis-side): set "
+            "workpiece_axes to 1 + the number of Y, Z axes on the workpiece side",
+            "chain XYZ", "workpiece_axes ?"])
     else:
         wp = [a for a in ("Y", "Z") if known[a] == "workpiece"]
         tool = [a for a in ("Y", "Z") if known[a] == "tool"]
@@ -49,7 +51,7 @@ def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[s
              line.startswith("#")]
     names = ["EXX", "EYX", "EZX", "EAX", "EBX", "ECX"]
     keep = [k for k in range(6) if k > 0 or exx_includes_lead is not None]
-    lines = [f"// {h}" for h in head] + [" ".join(["X"] + [names[k] for k in keep])]
+    lines = ISG_COMMENT.lines(head) + [" ".join(["X"] + [names[k] for k in keep])]
     for i, x in enumerate(np.asarray(x_mm)):
         vals = [f"{err[i, k] * 1e3:.9f}" if k < 3 else f"{err[i, k]:.12f}" for k in keep]
         lines.append(f"{x + x0_mm:.4f} " + " ".join(vals))

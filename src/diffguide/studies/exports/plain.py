@@ -1,7 +1,7 @@
 """diffguide's own CSV: the errors (not negated) and their σ, ``#`` comment lines first."""
 
 from ...machine.kinematics import ERROR_NAMES
-from ._common import header_lines
+from ._common import CSV_COMMENT, header_lines
 
 UNITS = ("um", "um", "um", "urad", "urad", "urad")
 
@@ -11,7 +11,8 @@ def sigma_csv(x_mm, sigma, x0_mm, point, exx_includes_lead=True) -> str:
     uncertainties of the *errors* (the same for the compensation values); EXX's empty where
     EXX is left out."""
     lines = [
-        f"# diffguide: standard uncertainty (1 sigma) of the errors at point {point}",
+        *CSV_COMMENT.lines([f"diffguide: standard uncertainty (1 sigma) of the errors at "
+                            f"point {point}"]),
         "X_machine_mm,x_mm," + ",".join(f"{n}_sigma_{u}" for n, u in zip(ERROR_NAMES, UNITS)),
     ]
     for x, s in zip(x_mm, sigma):
@@ -29,7 +30,7 @@ def write(x_mm, err, sig, *, x0_mm, point, source, exx_includes_lead) -> dict[st
     cols = ["X_machine_mm", "x_mm"]
     for n, u in zip(ERROR_NAMES, UNITS):
         cols += [f"{n}_{u}", f"{n}_sigma_{u}"]
-    lines = [f"# {h}" for h in head] + [",".join(cols)]
+    lines = CSV_COMMENT.lines(head) + [",".join(cols)]
     for i, x in enumerate(x_mm):
         vals = []
         for k in range(6):

@@ -22,25 +22,25 @@ axis); EXX (pitch) belongs to the separate LEC tables (``$AA_ENC_COMP``) and is 
 
 import numpy as np
 
-from ._common import cross_tables, equidistant_step, header_lines
+from ._common import CEC_COMMENT, cross_tables, equidistant_step, header_lines
 
 
 def activation_block(tables, names, n) -> list[str]:
     """The machine and setting data that make the tables act (commented: they are not part
     of an init program)."""
-    out = ["; --- activation (machine/setting data, not part of this program; K3 4.4.3) ---"]
+    out = ["--- activation (machine/setting data, not part of this program; K3 4.4.3) ---"]
     for t in range(len(tables)):
-        out.append(f"; MD18342 $MN_MM_CEC_MAX_POINTS[{t}] >= {n}  (then power on: the static "
+        out.append(f"MD18342 $MN_MM_CEC_MAX_POINTS[{t}] >= {n}  (then power on: the static "
                    "memory is re-formatted; back it up first)")
     axes = ", ".join(f"[{names[axis]}]" for _, axis, _, _ in tables)
     out += [
-        f"; MD32710 $MA_CEC_ENABLE{axes} = 0 while this program is loaded (tables load only "
+        f"MD32710 $MA_CEC_ENABLE{axes} = 0 while this program is loaded (tables load only "
         "when it is 0)",
-        f"; then MD32710 $MA_CEC_ENABLE{axes} = 1 and NEWCONF",
+        f"then MD32710 $MA_CEC_ENABLE{axes} = 1 and NEWCONF",
     ]
-    out += [f"; SD41300 $SN_CEC_TABLE_ENABLE[{t}] = 1" for t in range(len(tables))]
-    out.append("; the basic axis must be referenced for the compensation to act")
-    return out
+    out += [f"SD41300 $SN_CEC_TABLE_ENABLE[{t}] = 1" for t in range(len(tables))]
+    out.append("the basic axis must be referenced for the compensation to act")
+    return CEC_COMMENT.lines(out)
 
 
 def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[str, str]:
@@ -51,11 +51,12 @@ def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[s
                         "compensation axis, mm (sign from the side of that axis)",
                         exx_includes_lead)
     head[-1] = "EXX (pitch) is not in this program: it belongs to the LEC tables ($AA_ENC_COMP)"
-    out = ["%_N_NC_CEC_INI", "CHANDATA(1)"] + [f"; {h}" for h in head]
+    out = ["%_N_NC_CEC_INI", "CHANDATA(1)"] + CEC_COMMENT.lines(head)
     out += activation_block(tables, names, len(x_mm))
     for t, (name, axis, side, comp) in enumerate(tables):
-        out.append(f"; table {t}: {'+' if side == 'tool' else '-'}{name} on {names[axis]} "
-                   f"({axis}, {side} side) as a function of {names['X']} (X)")
+        out += CEC_COMMENT.lines([f"table {t}: {'+' if side == 'tool' else '-'}{name} on "
+                                  f"{names[axis]} ({axis}, {side} side) as a function of "
+                                  f"{names['X']} (X)"])
         out += [f"$AN_CEC[{t},{i}]={v * 1e3:.6f}" for i, v in enumerate(np.asarray(comp))]
         out += [
             f"$AN_CEC_INPUT_AXIS[{t}]=({names['X']})",
