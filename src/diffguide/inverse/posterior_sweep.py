@@ -142,11 +142,10 @@ class PosteriorSweep:
         for machine in self.machines:
             own = np.asarray(machine.points_xy, dtype=float).reshape(-1, 2)
             R = np.asarray(machine.table.R).reshape(len(own), 6, -1)
-            d = np.abs(pts[:, None, :] - own[None, :, :]).max(axis=-1) if len(own) else \
-                np.full((len(pts), 1), np.inf)
+            d = np.abs(pts[:, None, :] - own[None, :, :]).max(axis=-1)  # (q, n_own)
             hit = d.min(axis=1) <= _SAME_POINT
             rows = np.empty((len(pts), 6, R.shape[-1]))
-            rows[hit] = R[np.argmin(d[hit], axis=1)] if hit.any() else rows[hit]
+            rows[hit] = R[np.argmin(d[hit], axis=1)]
             if not hit.all():
                 if self.mesh is None:
                     x, y = pts[~hit][0] * 1e3

@@ -281,8 +281,9 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
             nodes. Default: :func:`~diffguide.machine.build.build_machine` of ``spec``.
         mesh_points: the points ``{name: (x, y)}`` (m) whose grid lines the table's mesh holds;
             default ``measured_points`` (the fit's mesh; the requested points are interpolated
-            in its elements). ``{**measured_points, **points}`` gives the mesh of
-            :func:`_predict_recondensed` (a grid line through every point).
+            in its elements), or without them the specification's own points.
+            ``{**measured_points, **points}`` gives the mesh of :func:`_predict_recondensed`
+            (a grid line through every point).
 
     The table is condensed once per structure value and fitted model, not per point set
     (module docstring). Returns a :class:`Prediction`. ``ValueError`` for points off the
@@ -296,7 +297,7 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
         mesh = allp
     else:
         given = measured_points if mesh_points is None else mesh_points
-        mesh = _check_points(given, spec) if given else {}
+        mesh = _check_points(given or spec.point_dict, spec)
     sweep = posterior_sweep(post, spec, x, mesh, nx, ny, make_machine)
     e, sig = sweep.errors(np.array(list(pts.values())).reshape(-1, 2), z)
     return Prediction(positions=x, point_names=tuple(pts), points_xy=np.array(list(pts.values())),
