@@ -176,7 +176,9 @@ class PosteriorSweep:
         Rh[:, _EXX, m] = 1.0  # the lead row enters EXX (which no Abbe term feeds)
         Rh = Rh.reshape(q * 6, m + 1)
         S = np.einsum("pav,vw,pbw->pab", self.jac, self.cov, self.jac, optimize=True)
-        var = np.einsum("qa,pqa->pq", Rh, np.matmul(Rh[None], S), optimize=True)
+        a1 = m + 1  # one product (Q, a1) @ (a1, n_pos·a1): a single large BLAS call
+        Y = (Rh @ S.transpose(1, 0, 2).reshape(a1, n_pos * a1)).reshape(q * 6, n_pos, a1)
+        var = np.einsum("qpb,qb->pq", Y, Rh)
         if self.secants:
             idx = [i for i, _ in self.secants]
             a = np.stack([(self._motion(R, 2 * s + 2) - self._motion(R, 2 * s + 1)) / (2 * h)
