@@ -142,11 +142,10 @@ def run(args) -> int:
     if args.grid_plot and not args.grid:
         raise ValueError("--grid-plot needs --grid NXxNY")
     if args.grid:
-        shape = parse_grid(args.grid, len(x))
         if make_machine is not None:
             raise ValueError("--grid: the table is imported (a reduced matrix): it knows only "
                              "its retained nodes; predict there with --point/--points")
-        pred = error_map(post, spec, shape, x, **kw)
+        pred = error_map(post, spec, parse_grid(args.grid, len(x)), x, **kw)
     else:
         pred = predict(post, spec, points, x, make_machine=make_machine, **kw)
     src = f"from the fit in {Path(args.fit).resolve()}"

@@ -55,7 +55,7 @@ def grid_points(spec, shape) -> dict:
 
 def error_map(fit, spec, shape, positions, *, measured_points: dict | None = None,
               nx: int | None = None, ny: int | None = None, extrapolate: bool = False,
-              z: float = 0.0) -> Prediction:
+              z: float = 0.0, make_machine=None) -> Prediction:
     """The six joint errors with σ on the ``shape = (NX, NY)`` grid over the table top
     (module docstring) at every table position.
 
@@ -63,11 +63,16 @@ def error_map(fit, spec, shape, positions, *, measured_points: dict | None = Non
         fit, spec, positions, measured_points, nx, ny, extrapolate, z: as for
             :func:`~.predict.predict` (``nx``, ``ny``: the fit's mesh divisions, not the grid).
         shape: ``(NX, NY)`` grid points along X and Y (:func:`check_grid`).
+        make_machine: an imported table's builder (``predict``'s) is refused: such a table
+            knows only its retained nodes.
 
     Returns a :class:`~.predict.Prediction` with ``grid_shape = (NX, NY)``: ``errors`` and
     ``sigma`` ``(n_pos, NX·NY, 6)``, x-major (``reshape(n_pos, NX, NY, 6)``). The table's
     mesh is needed: an imported table (retained nodes only) has no error map.
     """
+    if make_machine is not None:
+        raise ValueError("no error map for an imported table (a reduced matrix): it knows only "
+                         "its retained nodes; predict there")
     x = np.atleast_1d(np.asarray(positions, dtype=float))
     shape = check_grid(shape, len(x))
     pred = predict(fit, spec, grid_points(spec, shape), x, measured_points=measured_points,
