@@ -85,10 +85,11 @@ def main(argv=None):
     repeats = 1 if a.quick else a.repeats
     meshes = bench_cli.MESHES[:2] if a.quick else bench_cli.MESHES
     load0 = bench_cli._load()
+    startup = bench_cli.bench_startup(max(repeats, 5))
     cli = bench_cli.bench_cli(repeats)
     st = bench_cli.bench_steady(meshes)
     table = render(
-        bench_cli.table_rows(cli, st),
+        bench_cli.table_rows(cli, st, startup),
         quick=a.quick,
         repeats=repeats,
         load0=load0,

@@ -16,13 +16,15 @@ jax.config.update("jax_numpy_dtype_promotion", "standard")
 
 import pytest  # noqa: E402
 
-#: One persistent compilation cache for the whole session (``$DIFFGUIDE_TEST_JAX_CACHE`` to keep
-#: one between runs; by default a fresh folder, removed at the end, so that every run compiles
-#: every program once). A module's compiled programs are freed after it (below), and the next
-#: module that lowers the same program reads XLA's executable back instead of compiling it again.
-#: Programs with host callbacks (equinox's checks under ``EQX_ON_ERROR=raise``) are never
-#: stored by JAX: those compile as before. The executables are those XLA compiles (JAX keys
-#: the cache by the lowered program, the compile options, the backend and the versions).
+#: One persistent compilation cache for the whole session: a module's compiled programs are
+#: freed after it (below), and the next module that lowers the same program reads XLA's
+#: executable back instead of compiling it again. By default a fresh folder per test process
+#: (with ``pytest -n``, each worker has its own, so that no process reads an entry another is
+#: still writing), removed at the end, so that every run compiles every program once;
+#: ``$DIFFGUIDE_TEST_JAX_CACHE`` names one to keep between serial runs. Programs with host
+#: callbacks (equinox's checks under ``EQX_ON_ERROR=raise``) are never stored by JAX: those
+#: compile as before. The executables are those XLA compiles (JAX keys the cache by the lowered
+#: program, the compile options, the backend and the versions).
 _KEEP_CACHE = bool(os.environ.get("DIFFGUIDE_TEST_JAX_CACHE"))
 _SESSION_CACHE = os.environ.get("DIFFGUIDE_TEST_JAX_CACHE") or tempfile.mkdtemp(
     prefix="diffguide-test-jax-cache-")

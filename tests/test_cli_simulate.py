@@ -179,3 +179,28 @@ def test_a_command_run_in_process_keeps_the_callers_figures_and_backend(tmp_path
         assert matplotlib.get_backend() == backend
     finally:
         plt.close(mine)
+
+
+def test_x0_means_one_quantity_in_simulate_and_fit():
+    # x0 is the machine coordinate of the table position x = 0 in both commands; simulate's
+    # --x0-mm is its --machine-x0-mm (the compensation table only), fit's is the measurement
+    # files' x0 (which also places fit's table): both helps say which
+    import argparse
+
+    from diffguide.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    sim, fit = sub.choices["simulate"], sub.choices["fit"]
+    for flag in ("--x0-mm", "--machine-x0-mm"):
+        args = sim.parse_args(["--out", "x.csv", flag, "400"])
+        assert args.machine_x0_mm == 400.0
+    helps = {a.dest: " ".join(a.help.split()) for a in sim._actions if a.help}
+    assert "only the compensation table" in helps["machine_x0_mm"]
+    assert "stay in table positions x" in helps["machine_x0_mm"]
+    assert "not machine coordinates" in helps["positions"]
+    fit_helps = {a.dest: " ".join(a.help.split()) for a in fit._actions if a.help}
+    assert "x = position - x0" in fit_helps["x0_mm"]
+    assert "compensation table's x0 unless --machine-x0-mm" in fit_helps["x0_mm"]
+    assert fit.parse_args(["--measurements", "m.csv", "--out", "o", "--x0-mm", "middle"]
+                          ).x0_mm == "middle"

@@ -248,3 +248,24 @@ def test_explain_names_each_values_source_and_reads_back(tmp_path, capsys):
         return [ln for ln in dump_config(cfg).splitlines() if not ln.startswith("# carriage:")]
 
     assert body(again) == body(want)
+
+
+@pytest.mark.parametrize("name", ['P "1"', "P.1", "a b", "ü", "back\\slash", "x=y", "#1"])
+def test_explain_and_dump_quote_point_names(tmp_path, capsys, name):
+    """A point name that is not a bare TOML key (quotes, a dot, a space, ...) is written as a
+    quoted key: ``config --explain`` and :func:`dump_config` read back through tomllib to the
+    same points."""
+    import json
+    import tomllib
+
+    path = tmp_path / "m.toml"
+    # json.dumps writes a TOML basic string (the same escapes) for these names
+    path.write_text(f"[points]\n{json.dumps(name)} = [100.0, -50.0]\nQ = [0.0, 0.0]\n",
+                    encoding="utf-8")
+    want = load_config(path)["points"]
+    assert set(want) == {name, "Q"}
+    assert main(["config", "--explain", str(path)]) == 0
+    explained = tomllib.loads(capsys.readouterr().out)
+    assert explained["points"] == {k: list(v) for k, v in want.items()}
+    dumped = tomllib.loads(dump_config(load_config(path)))
+    assert dumped["points"] == {k: list(v) for k, v in want.items()}

@@ -82,7 +82,7 @@ def test_conflicting_files_are_refused_naming_both(tmp_path):
     with pytest.raises(ValueError, match=r"high.csv:\d+: EBX at P1 \(level\) is read at z = 50 "
                                          r"mm here but at z = 0 mm in .*a.csv:\d+"):
         read_any([a, h])
-    with pytest.raises(ValueError, match="the same measurement file is given twice"):
+    with pytest.raises(ValueError, match="the same file, given twice as measurement files"):
         read_any([a, a])
 
 
@@ -134,4 +134,30 @@ def test_fit_refuses_a_conflicting_pair_before_any_work(tmp_path, capsys):
                  str(tmp_path / "o"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "b.csv" in err and "a.csv" in err and "point 'P5'" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_same_file_twice_is_refused_however_it_is_named(tmp_path, monkeypatch, capsys):
+    # merged as new data, a file given twice would count every reading twice and narrow the
+    # fit's σ by √2: refused by resolved path and by content, naming both
+    rows = [r for r in _rows() if r["point"] == "P5"]
+    a = _write(tmp_path / "a.csv", rows)
+    copy = tmp_path / "copy.csv"
+    copy.write_bytes(a.read_bytes())
+    link = tmp_path / "link.csv"
+    link.symlink_to(a)
+    monkeypatch.chdir(tmp_path)
+    for other, why in (("./a.csv", "the same file"), (str(tmp_path / "sub" / ".." / "a.csv"),
+                                                     "the same file"),
+                       (str(link), "the same file"), (str(copy), "the same content")):
+        (tmp_path / "sub").mkdir(exist_ok=True)
+        with pytest.raises(ValueError) as exc:
+            read_any(["a.csv", other])
+        msg = str(exc.value)
+        assert msg.startswith(f"a.csv and {other}: ") and why in msg, msg
+    # the command line: exit 2 before any work, both files named
+    assert main(["fit", "--measurements", "a.csv", "--measurements", str(copy), "--out",
+                 str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"a.csv and {copy}: the same content" in err
     assert not (tmp_path / "o").exists()

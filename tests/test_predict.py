@@ -11,6 +11,7 @@ import csv
 import dataclasses
 import json
 import shutil
+from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -22,8 +23,14 @@ from diffguide.cli import main
 from diffguide.guideway.rails import AbstractRailProfile, SplineRail
 from diffguide.inverse.error_map import check_grid, error_map
 from diffguide.inverse.predict import FitPosterior, _predict_recondensed, predict
-from diffguide.io.config import default_config, spec_from_config
-from diffguide.io.fit_posterior import read_fit_posterior
+from diffguide.io.config import default_config, load_config, spec_from_config
+from diffguide.io.fit_posterior import (
+    FORMAT_1,
+    content_fingerprint,
+    machine_snapshot,
+    read_fit_posterior,
+    stamped_text,
+)
 from diffguide.machine.build import build_machine
 from diffguide.machine.kinematics import joint_errors
 from diffguide.studies.compensation import fitted_compensation
@@ -291,7 +298,7 @@ def test_command_line_end_to_end(fitted, prediction, tmp_path, capsys):
     shutil.copytree(out, narrow)
     d = json.loads((narrow / "posterior.json").read_text(encoding="utf-8"))
     d["position_range_m"] = [-0.25, 0.25]
-    (narrow / "posterior.json").write_text(json.dumps(d), encoding="utf-8")
+    (narrow / "posterior.json").write_text(stamped_text(d), encoding="utf-8")
     argv = ["predict", "--fit", str(narrow), "--point", "Q:300,100", "--positions-mm",
             "-300:300:5", "--out", str(tmp_path / "x.csv")]
     assert main(argv) == 2
@@ -387,3 +394,139 @@ def test_error_map_over_the_table_top(fitted, tmp_path, capsys):
                      str(tmp_path / "no.csv")]) == 2
         assert msg in capsys.readouterr().err
     assert not (tmp_path / "no.csv").exists()
+
+
+# ---- posterior.json read strictly: its checksum, every field's type, the machine ----
+
+def _write(folder, d, *, stamp=True):
+    folder.mkdir(exist_ok=True)
+    text = stamped_text(d) if stamp else json.dumps(d)
+    (folder / "posterior.json").write_text(text, encoding="utf-8")
+    return folder
+
+
+def _set(d, path, value):
+    *head, last = path
+    for k in head:
+        d = d[k]
+    if value is _DELETE:
+        del d[last]
+    else:
+        d[last] = value
+
+
+_DELETE = object()
+
+
+@pytest.mark.parametrize("path, value, message", [
+    (("rigid",), "false", "field 'rigid' must be a JSON bool (true or false), got a string"),
+    (("rigid",), 0, "field 'rigid' must be a JSON bool"),
+    (("x_ref_m",), _DELETE, "required field 'x_ref_m' is missing"),
+    (("knots",), _DELETE, "required field 'knots' is missing"),
+    (("cov", 3, 3), -1e-12, "the variance cov[3][3] = -1e-12 is negative"),
+    (("cov", 0, 1), 1.0, "field 'cov' must be symmetric"),
+    (("knots", "n"), "26", "field 'knots.n' must be int"),
+    (("knots", "spacing_m"), -0.05, "field 'knots.spacing_m' must be > 0"),
+    (("coeffs_m", 0, 0, 0), "1e-6", "field 'coeffs_m' must hold finite numbers only"),
+    (("structure", "thickness", "prior_sigma_log"), -0.3,
+     "field 'structure.thickness.prior_sigma_log' must be > 0"),
+    (("points_m", "P1"), [0.45], "field 'points_m.P1' must be [x, y]"),
+    (("x0_mm",), "0", "field 'x0_mm' must be a finite number"),
+    (("machine", "preset"), None, "must name exactly one of 'preset' and 'config'"),
+    (("format",), "diffguide fit posterior 9", "field 'format'"),
+])
+def test_every_field_is_checked_and_named(fitted, tmp_path, path, value, message):
+    out = fitted[0]
+    d = json.loads((out / "posterior.json").read_text(encoding="utf-8"))
+    _set(d, path, value)
+    folder = _write(tmp_path / "bad", d)  # a valid checksum: the field itself is refused
+    with pytest.raises(ValueError) as exc:
+        read_fit_posterior(folder)
+    assert str(exc.value).startswith(str(folder / "posterior.json"))
+    assert message in str(exc.value)
+
+
+def test_the_checksum_catches_an_edit_and_ignores_the_layout(fitted, tmp_path):
+    out = fitted[0]
+    d = json.loads((out / "posterior.json").read_text(encoding="utf-8"))
+    assert d["format"] == "diffguide fit posterior 2" and len(d["checksum"]) == 64
+    # the same content indented: still the fit's
+    (tmp_path / "pretty").mkdir()
+    (tmp_path / "pretty" / "posterior.json").write_text(json.dumps(d, indent=2))
+    read_fit_posterior(tmp_path / "pretty")
+    # a coefficient edited by hand (its type right): refused
+    d["coeffs_m"][0][0][3] += 1e-6
+    with pytest.raises(ValueError, match="does not match its checksum"):
+        read_fit_posterior(_write(tmp_path / "edited", d, stamp=False))
+    del d["checksum"]
+    with pytest.raises(ValueError, match="field 'checksum' is missing"):
+        read_fit_posterior(_write(tmp_path / "unsummed", d, stamp=False))
+
+
+def test_a_format_1_file_is_read_with_a_warning(fitted, tmp_path):
+    out, post, *_ = fitted
+    d = json.loads((out / "posterior.json").read_text(encoding="utf-8"))
+    del d["checksum"], d["machine"]["fingerprint"], d["machine"]["snapshot"]
+    d["format"] = FORMAT_1
+    old, meta = read_fit_posterior(_write(tmp_path / "old", d, stamp=False))
+    np.testing.assert_array_equal(old.cov, post.cov)
+    assert len(meta["warnings"]) == 1 and "without a checksum" in meta["warnings"][0]
+    # strict types hold for the old format too
+    d["rigid"] = "false"
+    with pytest.raises(ValueError, match="JSON bool"):
+        read_fit_posterior(_write(tmp_path / "old", d, stamp=False))
+
+
+def test_the_fits_machine_fingerprint(fitted):
+    _, _, meta, _ = fitted
+    assert meta["warnings"] == []
+    snap = machine_snapshot(default_config())
+    assert meta["machine"]["fingerprint"] == content_fingerprint(snap)
+    assert "fit" not in snap and "points" not in snap  # not the machine predict builds
+
+
+def test_predict_refuses_a_machine_changed_since_the_fit(fitted, tmp_path, capsys):
+    # a fit made with a machine file (the preset's values); the file edited afterwards
+    out = fitted[0]
+    toml = tmp_path / "machine.toml"
+    toml.write_text("[guideway]\nrail_y_mm = [-170.0, 170.0]\n", encoding="utf-8")
+    snap = machine_snapshot(load_config(toml))
+    assert snap == machine_snapshot(default_config())
+    d = json.loads((out / "posterior.json").read_text(encoding="utf-8"))
+    d["machine"] = {"preset": None, "config": str(toml), "nx": None, "ny": None,
+                    "fingerprint": content_fingerprint(snap), "snapshot": snap}
+    folder = _write(tmp_path / "fit", d)
+    toml.write_text("[guideway]\nrail_y_mm = [-170.0, 175.0]\n", encoding="utf-8")
+    csv_out = tmp_path / "p.csv"
+    argv = ["predict", "--fit", str(folder), "--point", "Q:300,100", "--positions-mm",
+            "-300:300:5", "--out", str(csv_out), "-q"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"the machine file {toml} changed since the fit" in err
+    assert "guideway.rail_y_mm: [-170.0, 170.0] at the fit, [-170.0, 175.0] now" in err
+    assert "--accept-machine-change" in err and not csv_out.exists()
+    # accepted: a warning on stderr and in the file's header
+    assert main(argv + ["--accept-machine-change"]) == 0
+    assert "warning: the machine file" in capsys.readouterr().err
+    head = csv_out.read_text(encoding="utf-8").splitlines()[0]
+    assert "WARNING" in head and "guideway.rail_y_mm" in head
+
+
+def test_an_imported_tables_files_are_in_the_fingerprint(tmp_path):
+    # an imported table is fingerprinted by its files' bytes, not by their paths: the same
+    # files elsewhere are the same machine; a changed matrix file is a changed machine
+    from diffguide.io.fit_posterior import machine_changes
+
+    src = Path(__file__).resolve().parents[1] / "data" / "examples" / "superelement"
+    a = load_config(src / "machine.toml")
+    shutil.copytree(src, tmp_path / "se")
+    b_path = tmp_path / "se" / "machine.toml"
+    snap = machine_snapshot(a)
+    files = snap["table_source"]["files"]
+    assert set(files) == {"plate.toml", "plate.dat", "plate_nodes.inp", "plate_held_loads.inp"}
+    assert machine_snapshot(load_config(b_path)) == snap
+    meta = {"machine": {"fingerprint": content_fingerprint(snap), "snapshot": snap}}
+    with open(tmp_path / "se" / "plate.dat", "a", encoding="utf-8") as fh:
+        fh.write("\n")
+    changes = machine_changes(meta, load_config(b_path))
+    assert len(changes) == 1 and changes[0].startswith("table_source.files.plate.dat: ")

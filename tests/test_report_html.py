@@ -87,13 +87,17 @@ def _parse(text: str) -> _Page:
 
 def _check_table(page: _Page, section: dict) -> None:
     header, *rows = page.rows
-    assert header[3:5] == ["straightness (µm)", "U, k = 2 (µm)"] and header[-1] == "verdict"
+    assert header[3:6] == ["straightness: median of the draws (µm)",
+                           "95 % interval of the draws (µm)", "mean profile's (µm)"]
+    assert header[-1] == "verdict"
     assert len(rows) == len(section["rails"]) == 4
     for cells, r in zip(rows, section["rails"]):
         assert cells[0] == str(r["rail"]) and cells[2] == r["plane"]
         assert cells[1].startswith(r["side"])
         assert float(cells[3]) == round(r["straightness_um"], 2)
-        assert float(cells[4]) == round(r["U_um"], 2)
+        assert [float(v) for v in cells[4].split(" … ")] == [round(v, 2) for v in
+                                                             r["interval_95_um"]]
+        assert float(cells[5]) == round(r["mean_profile_um"], 2)
         assert cells[-1] == r["verdict"]
     assert page.verdict.strip() == verdict_line(section)
 
@@ -101,19 +105,23 @@ def _check_table(page: _Page, section: dict) -> None:
 def test_json_straightness_section(fitted):
     out, _ = fitted
     st = json.loads((out / "report.json").read_text())["straightness"]
-    assert st["tolerance_um"] == TOLERANCE_UM and st["coverage_factor"] == 2
+    assert st["tolerance_um"] == TOLERANCE_UM and st["coverage_probability"] == 0.95
     assert "least-squares" in st["reference_line"]
     assert {(r["rail"], r["side"], r["plane"]) for r in st["rails"]} == {
         (1, "−y", "vertical"), (1, "−y", "horizontal"), (2, "+y", "vertical"),
         (2, "+y", "horizontal")}  # majda2012: rail 1 at y = −170 mm
     for r in st["rails"]:
-        assert 0 < r["U_um"] < r["straightness_um"] < 20  # µm-scale rails, a sound fit
+        assert 0 < r["u_um"] < r["straightness_um"] < 20  # µm-scale rails, a sound fit
         lo, hi = r["interval_95_um"]
-        assert lo < r["straightness_um"] + r["U_um"] and hi > r["straightness_um"] - r["U_um"]
-        expected = ("pass" if r["straightness_um"] + r["U_um"] <= TOLERANCE_UM else
-                    "fail" if r["straightness_um"] - r["U_um"] > TOLERANCE_UM else
+        assert lo < r["straightness_um"] < hi
+        # the peak-to-valley's bias: the draws above the mean profile's
+        assert r["bias_um"] == pytest.approx(r["straightness_um"] - r["mean_profile_um"])
+        assert 0 < r["bias_um"] < r["u_um"]
+        assert r["informative"] and r["prior_ratio"] < 0.9  # the data narrow the prior
+        # ISO 14253-1 on the interval, not on value ± U
+        expected = ("pass" if hi <= TOLERANCE_UM else "fail" if lo > TOLERANCE_UM else
                     "not decidable")
-        assert r["verdict"] == expected
+        assert r["verdict"] == expected and r["verdict_reason"]
 
 
 def test_html_is_self_contained_and_matches_the_json(fitted):
@@ -212,7 +220,8 @@ def test_report_figures_take_ax_and_draw(tmp_path):
     dev = np.sin(s / 100.0)[None, None] * np.ones((2, 2, 1))
     sig = 0.1 * np.ones_like(dev)
     rows = [{"rail": r + 1, "side": "−y" if r == 0 else "+y", "y_mm": -170.0 + 340.0 * r,
-             "plane": pl, "straightness_um": 2.0, "U_um": 0.2, "verdict": None}
+             "plane": pl, "straightness_um": 2.0, "interval_95_um": [1.8, 2.3],
+             "verdict": None}
             for r in range(2) for pl in ("vertical", "horizontal")]
     chans = [(f"EAX (roll) at P{k}", "µrad", s, np.cos(s), 0.5 + 0 * s) for k in range(3)]
     fig, axes = plt.subplots(2, 2)

@@ -1,5 +1,6 @@
-"""Straightness (ISO 230-1) and its expanded uncertainty against closed forms and an
-independent Monte Carlo; the ISO 14253-1 verdict's zones."""
+"""Straightness (ISO 230-1) and its uncertainty against closed forms and an independent Monte
+Carlo; the coverage interval against a known distribution; the ISO 14253-1 verdict from that
+interval on hand-made cases, and never "pass" from data that carry no information."""
 
 import types
 
@@ -8,13 +9,15 @@ import pytest
 
 from diffguide.inverse.basis import RailBasis
 from diffguide.studies.straightness import (
+    coverage_interval,
+    decide,
     deviation_bands,
     deviations,
+    prior_cov,
     rail_straightness,
     sample_gaussian,
     straightness,
     uncertain_straightness,
-    verdict,
 )
 
 
@@ -55,16 +58,40 @@ def test_bad_arguments():
     with pytest.raises(ValueError, match="increasing"):
         straightness([1.0, 0.0], [0.0, 1.0])
     with pytest.raises(ValueError, match="tolerance"):
-        verdict(1.0, 0.1, -2.0)
+        decide((1.0, 1.2), -2.0)
+    with pytest.raises(ValueError, match="interval"):
+        decide((1.2, 1.0), 2.0)
 
 
-def test_verdict_zones():
-    # ISO 14253-1: conformance proved inside T − U, non-conformance beyond T + U
-    assert verdict(4.0, 1.0, 5.0) == "pass"  # boundary: value + U = T
-    assert verdict(4.5, 1.0, 5.0) == "not decidable"
-    assert verdict(6.0, 1.0, 5.0) == "not decidable"  # boundary: value − U = T
-    assert verdict(6.5, 1.0, 5.0) == "fail"
-    assert verdict(6.5, 1.0, None) is None
+def test_verdict_from_the_interval():
+    # ISO 14253-1 on the measurand's 95 % coverage interval [lo, hi]: hand-made cases
+    assert decide((3.0, 5.0), 5.0) == "pass"  # boundary: upper end on the tolerance
+    assert decide((3.0, 5.01), 5.0) == "not decidable"
+    assert decide((5.0, 6.0), 5.0) == "not decidable"  # boundary: lower end on it
+    assert decide((5.01, 6.0), 5.0) == "fail"
+    assert decide((5.01, 6.0), None) is None
+    # the bundled data's rail 2 horizontal as reported before: 3.21 + U 1.69 <= 5 said "pass",
+    # while its draws' interval reached 5.24 µm
+    assert decide((2.52, 5.24), 5.0) == "not decidable"
+
+
+def test_data_without_information_are_never_decided():
+    # a stuck instrument: the interval is tiny and far below the tolerance, but it is the
+    # prior's, not the data's
+    assert decide((0.0, 0.03), 0.2) == "pass"
+    assert decide((0.0, 0.03), 0.2, informative=False) == "not decidable"
+    assert decide((5.01, 6.0), 5.0, informative=False) == "not decidable"
+
+
+def test_coverage_interval_of_a_known_distribution():
+    # a log-normal (skewed like a peak-to-valley): the probabilistically symmetric 95 %
+    # interval is exp(μ ± 1.959964 σ)
+    x = np.random.default_rng(1).lognormal(0.3, 0.5, 200_000)
+    lo, hi = coverage_interval(x)
+    assert lo == pytest.approx(np.exp(0.3 - 1.959964 * 0.5), rel=0.01)
+    assert hi == pytest.approx(np.exp(0.3 + 1.959964 * 0.5), rel=0.01)
+    with pytest.raises(ValueError, match="probability"):
+        coverage_interval(x, 1.5)
 
 
 def _spline_of(basis, f):
@@ -84,9 +111,10 @@ def test_linear_case_closed_form():
     L = basis.end - basis.start
     res = uncertain_straightness(s, basis.matrix(s), a0 * v, sa**2 * np.outer(v, v),
                                  n_samples=20000, seed=3)
-    assert res["value"] == pytest.approx(a0 * L**2 / 4, rel=1e-3)
+    assert res["value"] == pytest.approx(a0 * L**2 / 4, rel=1e-3)  # the draws' median
+    assert res["mean_profile"] == pytest.approx(a0 * L**2 / 4, rel=1e-9)
+    assert abs(res["bias"]) < 0.01 * res["u"]  # linear: no peak-to-valley bias
     assert res["u"] == pytest.approx(sa * L**2 / 4, rel=0.02)  # 1/√(2N) = 0.5 %
-    assert res["U"] == pytest.approx(2 * res["u"])
     lo, hi = res["interval_95"]
     assert lo == pytest.approx((a0 - 1.96 * sa) * L**2 / 4, rel=0.01)
     assert hi == pytest.approx((a0 + 1.96 * sa) * L**2 / 4, rel=0.01)
@@ -108,9 +136,14 @@ def test_u_against_an_independent_monte_carlo():
     t = np.array([np.ptp(e - np.polyval(np.polyfit(s, e, 1), s)) for e in draws])
     e0 = B @ mean
     t0 = np.ptp(e0 - np.polyval(np.polyfit(s, e0, 1), s))
-    assert res["value"] == pytest.approx(t0, rel=1e-9)
-    assert res["u"] == pytest.approx(np.sqrt(np.mean((t - t0) ** 2)), rel=0.05)
-    assert res["samples_mean"] == pytest.approx(t.mean(), rel=0.02)
+    assert res["mean_profile"] == pytest.approx(t0, rel=1e-9)
+    assert res["value"] == pytest.approx(np.median(t), rel=0.02)  # the estimate: the median
+    assert res["bias"] == pytest.approx(np.median(t) - t0, rel=0.1)
+    assert res["bias"] > 0  # noise raises a peak-to-valley
+    assert res["u"] == pytest.approx(t.std(), rel=0.05)
+    lo, hi = res["interval_95"]
+    assert lo == pytest.approx(np.quantile(t, 0.025), rel=0.03)
+    assert hi == pytest.approx(np.quantile(t, 0.975), rel=0.03)
 
 
 def test_sampling_a_singular_covariance():
@@ -158,6 +191,47 @@ def test_rail_straightness_rows():
         (2, "+y", "horizontal")]
     for r in rows:
         p = 0 if r["plane"] == "vertical" else 1
-        assert r["value"] == pytest.approx(
+        assert r["mean_profile"] == pytest.approx(
             straightness(s, fit.basis.matrix(s) @ fit.coeffs[r["rail"] - 1, p]))
         assert r["verdict"] == "pass"  # a 1 mm tolerance for µm profiles
+
+
+def _prior_fit(scale):
+    """A fake fit whose prior covariance is known and whose posterior is ``scale`` × it."""
+    basis = RailBasis.covering(-0.25, 0.25, 0.05)
+    n = basis.n_coeffs
+    A = np.random.default_rng(3).normal(size=(4 * n, 4 * n))
+    prior = (A @ A.T + 4 * n * np.eye(4 * n)) * 1e-14  # m², full rank
+    lam = 2.0  # θ in µm: prior N(0, (λΩ)⁻¹) µm²
+    Omega = np.linalg.inv(prior * 1e12) / lam
+    fit = types.SimpleNamespace(basis=basis, coeffs=np.zeros((2, 2, n)), cov=scale * prior,
+                                Z=np.eye(4 * n), lam=lam, Omega=Omega, waviness=0.0)
+    return fit, prior
+
+
+def test_prior_cov_from_the_fits_penalty():
+    fit, prior = _prior_fit(1.0)
+    np.testing.assert_allclose(prior_cov(fit), prior, rtol=1e-9)
+    assert prior_cov(types.SimpleNamespace()) is None  # a fit without its prior
+
+
+def test_a_posterior_as_wide_as_the_prior_decides_nothing():
+    # posterior = prior: the data taught nothing; a tolerance 100 × the straightness still
+    # gives "not decidable", with the reason; a posterior a tenth of the prior decides
+    for scale, expected in ((1.0, "not decidable"), (0.01, "pass")):
+        fit, _ = _prior_fit(scale)
+        s = np.linspace(fit.basis.start, fit.basis.end, 101)
+        rows = rail_straightness(fit, s, tolerance=1e-4, n_samples=400)
+        for r in rows:
+            assert r["interval_95"][1] < 1e-5
+            assert r["verdict"] == expected
+            assert r["informative"] == (expected == "pass")
+            if expected != "pass":
+                assert "prior" in r["verdict_reason"]
+
+
+def test_null_data_flag_decides_nothing():
+    fit = _fake_fit(np.random.default_rng(2))
+    s = np.linspace(fit.basis.start, fit.basis.end, 101)
+    rows = rail_straightness(fit, s, tolerance=1e-3, n_samples=200, informative=False)
+    assert {r["verdict"] for r in rows} == {"not decidable"}

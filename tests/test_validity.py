@@ -102,13 +102,20 @@ def null_fit(tmp_path_factory):
 
 
 def test_null_data_warn_and_keep_their_sigma(null_fit, capsys):
+    # a stuck instrument (every reading 9999) with a tight tolerance: the straightness'
+    # interval is the prior's, a few nm wide; the verdict is "not decidable", never "pass"
     out = null_fit / "out"
     assert main(["fit", "--measurements", str(null_fit / "null.csv"), "--out", str(out),
-                 *FAST]) == 0
+                 "--tolerance-um", "0.2", *FAST]) == 0
     err = _codes(capsys.readouterr().err)
     assert "carry no information" in err and "χ²/dof" in err
     rep = json.loads((out / "report.json").read_text())
     assert {"null_data", "chi2_low"} <= {w["code"] for w in rep["validity"]}
+    for r in rep["straightness"]["rails"]:
+        assert r["interval_95_um"][1] < 0.2
+        assert r["verdict"] == "not decidable" and not r["informative"]
+        assert "no information" in r["verdict_reason"]
+    assert "verdict: not decidable" in (out / "report.html").read_text(encoding="utf-8")
     rows = list(csv.DictReader((out / "rails.csv").open()))
     sig = np.array([float(r["vertical_sigma_um"]) for r in rows if abs(float(r["s_mm"])) > 200])
     assert sig.min() > 1e-3  # not the collapsed 4e-5 µm of a prior shrunk to zero

@@ -96,8 +96,8 @@ def say_straightness(args, report) -> None:
     from ..io.report_html import straightness_lines, verdict_line
 
     st = report["straightness"]
-    say(args, f"straightness, {st['reference_line']}; U from the fit's posterior, "
-              f"k = {st['coverage_factor']:g}:")
+    say(args, f"straightness, {st['reference_line']}; median and "
+              f"{st['coverage_probability'] * 100:g} % interval of the fit's posterior draws:")
     for line in straightness_lines(st):
         say(args, f"  {line}")
     say(args, verdict_line(st))

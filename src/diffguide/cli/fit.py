@@ -35,7 +35,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "(rail,s_mm,vertical_um,vertical_sigma_um,horizontal_um,horizontal_sigma_um), fit.csv "
         "(every input row with fitted and residual, in its unit), layout.csv (the measured "
         "layout, for 'diffguide plan --start'), report.json, report.html (the metrologist's "
-        "report: straightness per rail with U, verdict, figures; one self-contained file), "
+        "report: straightness per rail with its 95 % interval, verdict, figures; one "
+        "self-contained file), "
         "posterior.json (the posterior, for 'diffguide predict'), "
         "profiles.png, curves.png. Exit codes: 0 converged; 3 results written but the fit did "
         "not converge (flagged in report.json); 2 bad input or options (nothing written).",
@@ -45,8 +46,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="machine model (majda2012: 1000 x 500 mm table, rails 340 mm apart)")
     p.add_argument("--measurements", required=True, action="append", metavar="FILE.csv",
                    help="measurement file (see above); repeat it for several files, merged into "
-                   "one data set (each reading keeps its file; a point at two places or a "
-                   "channel at two heights is refused naming both files)")
+                   "one data set (each reading keeps its file; a point at two places, a "
+                   "channel at two heights, or one file twice - by another path, a link or a "
+                   "copy - is refused naming both files)")
     p.add_argument("--measurements-format", dest="layout", choices=("auto", "long", "wide"),
                    default="auto",
                    help="layout of --measurements: long (one reading per row), wide (targets x "
@@ -467,7 +469,7 @@ def _write_outputs(args, meas, fits, profiles, s_m, truth, seconds, machine, t_s
             files[POSTERIOR] = posterior_json_text(  # for diffguide predict
                 elastic, meas, preset=None if args.config else args.preset,
                 config=args.config, nx=args.nx, ny=args.ny,
-                x0_mm=_machine_x0(args, getattr(args, "input_info", {})))
+                x0_mm=_machine_x0(args, getattr(args, "input_info", {})), machine_cfg=cfg)
             report["total_seconds"] = time.perf_counter() - t_start
             files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
             staged.write(files)

@@ -51,7 +51,8 @@ def add_input_options(p, several: str) -> None:
                    "reference, mid-stroke) in the measurement file(s): x = position - x0; "
                    "'middle': the middle of the measured targets" + several + "; default: the "
                    "file's own statement (a wide file's x0_mm line, a profile's x0_mm), else 0 "
-                   "in every layout")
+                   "in every layout (fit: also the compensation table's x0 unless "
+                   "--machine-x0-mm; simulate's --x0-mm only places its compensation table)")
 
 
 def add_parser(sub) -> argparse.ArgumentParser:

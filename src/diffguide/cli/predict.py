@@ -1,12 +1,18 @@
 """``diffguide predict``: the joint errors, with σ, at any points of the table from a fit."""
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 from ._common import say
+
+
+def warn(line: str) -> None:
+    """A warning on stderr (also with --quiet)."""
+    print(f"diffguide predict: warning: {line}", file=sys.stderr)
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -51,6 +57,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="height of the points above the table top (mm; the tool point or a "
                    "workpiece feature): EXX gains z·EBX and EYX −z·EAX (Abbe), with their σ; "
                    "default 0, the table top")
+    p.add_argument("--accept-machine-change", action="store_true",
+                   help="predict although the machine file (or the preset) differs from the "
+                   "one the fit was made with: the differences are then printed as a warning "
+                   "and recorded in the output's header (default: refused, exit 2)")
     p.add_argument("--out", required=True, metavar="FILE.csv", help="output CSV")
     p.set_defaults(func=run)
     return p
@@ -110,16 +120,28 @@ def _positions(args, post) -> np.ndarray:
     return np.linspace(*post.position_range, 71)
 
 
-def _machine_spec(meta: dict):
-    """The fitted machine's specification and its builder for ``predict`` (``None`` for the
-    plate; :func:`diffguide.io.table_source.machine_builder`): the fit's machine file or
-    preset."""
+def _machine_spec(args, meta: dict):
+    """The fitted machine's specification, its builder for ``predict`` (``None`` for the
+    plate; :func:`diffguide.io.table_source.machine_builder`) and a note of what changed in
+    it since the fit (None: nothing): the fit's machine file or preset, refused where it
+    changed unless ``--accept-machine-change``."""
     from ..io.config import default_config, load_config, spec_from_config
+    from ..io.fit_posterior import machine_changes
     from ..io.table_source import machine_builder
 
     m = meta["machine"]
+    what = f"machine file {m['config']}" if m.get("config") else f"preset {m['preset']}"
     cfg = load_config(m["config"]) if m.get("config") else default_config()
-    return spec_from_config(cfg), machine_builder(cfg, m.get("nx"), m.get("ny"))
+    changes = machine_changes(meta, cfg)
+    note = None
+    if changes:
+        note = f"the {what} changed since the fit: " + "; ".join(changes)
+        if not args.accept_machine_change:
+            raise ValueError(f"{note}. The fit's posterior belongs to the machine it was fitted "
+                             "with: fit again, or give --accept-machine-change to predict "
+                             "with the changed machine anyway")
+        warn(f"{note} (predicting anyway: --accept-machine-change)")
+    return spec_from_config(cfg), machine_builder(cfg, m.get("nx"), m.get("ny")), note
 
 
 def run(args) -> int:
@@ -133,9 +155,11 @@ def run(args) -> int:
     if not (np.isfinite(args.z_mm) and -500.0 <= args.z_mm <= 2000.0):
         raise ValueError(f"--z-mm must be in [-500, 2000] mm, got {args.z_mm:g}")
     post, meta = read_fit_posterior(args.fit)
+    for line in meta["warnings"]:
+        warn(line)
     points = _points(args)
     x = _positions(args, post)
-    spec, make_machine = _machine_spec(meta)
+    spec, make_machine, changed = _machine_spec(args, meta)
     m = meta["machine"]
     kw = dict(measured_points=meta["points_m"], nx=m.get("nx"), ny=m.get("ny"),
               extrapolate=args.extrapolate, z=args.z_mm * 1e-3)
@@ -148,7 +172,8 @@ def run(args) -> int:
         pred = error_map(post, spec, parse_grid(args.grid, len(x)), x, **kw)
     else:
         pred = predict(post, spec, points, x, make_machine=make_machine, **kw)
-    src = f"from the fit in {Path(args.fit).resolve()}"
+    src = f"from the fit in {Path(args.fit).resolve()}" + (
+        f"; WARNING: {changed} (--accept-machine-change)" if changed else "")
     atomic_write_text(args.out, prediction_csv_text(pred, src, meta.get("x0_mm")))
     if args.grid_plot:
         _grid_plot(args, pred)

@@ -49,8 +49,9 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--positions",
         default=None,
-        help="table positions START:STOP:COUNT (mm); default: the machine's whole stroke at 71 "
-        "positions",
+        help="table positions x START:STOP:COUNT (mm, from mid-stroke; not machine "
+        "coordinates: --machine-x0-mm does not shift them); default: the machine's whole "
+        "stroke at 71 positions",
     )
     p.add_argument("--rigid-table", action="store_true", help="infinitely stiff table")
     p.add_argument("--mesh", help="table mesh NXxNY (elements); default from the machine (20x10)")
@@ -85,9 +86,11 @@ def add_parser(sub) -> None:
         dest="machine_x0_mm",
         type=float,
         default=0.0,
-        help="machine coordinate (mm) of the table position x = 0 (mid-stroke): the "
-        "compensation table is written at X = x + x0 (--x0-mm: its former name; 'fit' keeps "
-        "--x0-mm for the measurements' x0)",
+        help="machine coordinate (mm) of the table position x = 0 (mid-stroke), default 0: "
+        "only the compensation table is written at X = x + x0; --positions and the --out CSV "
+        "stay in table positions x. --x0-mm is its former name, kept: the same quantity as "
+        "'fit --x0-mm', which there also converts the measurement files' positions "
+        "(x = X - x0) before placing the table",
     )
     p.add_argument(
         "--tol-um",

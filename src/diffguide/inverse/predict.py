@@ -114,6 +114,12 @@ class FitPosterior:
                              f"lead unknowns, got shape {np.shape(self.cov)}")
         if len(self.position_range) != 2:
             raise ValueError("position_range must be (min, max) of the measured positions (m)")
+        if not isinstance(self.rigid, (bool, np.bool_)):
+            raise ValueError(f"rigid must be a bool, got {type(self.rigid).__name__} "
+                             f"{self.rigid!r}")
+        d = np.diag(np.asarray(self.cov, float))
+        if not (np.all(np.isfinite(self.cov)) and np.all(d >= 0)):
+            raise ValueError("cov must be finite with variances (its diagonal) >= 0")
 
     @property
     def basis(self) -> RailBasis:

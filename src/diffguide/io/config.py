@@ -12,6 +12,7 @@ every error names the file, the key and the allowed range, in one line — and
 
 import math
 import os
+import re
 import tomllib
 from pathlib import Path
 
@@ -317,7 +318,7 @@ def explain_config(path: str | os.PathLike) -> str:
     points = ("file" if "points" in raw else
               "the imported table's retained points" if unused else "default")
     lines.append(f"[points]  # {points}")
-    lines += [f"{n} = {_toml_value(xy)}" for n, xy in cfg["points"].items()]
+    lines += [f"{_toml_key(n)} = {_toml_value(xy)}" for n, xy in cfg["points"].items()]
     lines.append("")
     ribs = unused or ("file" if "ribs" in raw else "default")
     lines.append(f"# ribs: {len(cfg['ribs'])} ({ribs})")
@@ -333,11 +334,30 @@ def explain_config(path: str | os.PathLike) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _toml_string(s: str) -> str:
+    """A TOML basic string: backslash, quote and control characters escaped."""
+    out = []
+    for ch in s:
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append({"\n": "\\n", "\t": "\\t", "\r": "\\r"}.get(ch, f"\\u{ord(ch):04X}"))
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _toml_key(name: str) -> str:
+    """A TOML key: bare where it may be (ASCII letters, digits, ``_``, ``-``), else quoted (a
+    dot in a bare key would make a nested table, a quote or a space is invalid)."""
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else _toml_string(name)
+
+
 def _toml_value(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
-        return f'"{v}"'
+        return _toml_string(v)
     if isinstance(v, (tuple, list)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, float):
@@ -364,7 +384,7 @@ def dump_config(cfg: dict, title: str = "") -> str:
         lines.append("")
     lines.append("[points]  # control points on the table top: name = [x_mm, y_mm] from its centre")
     for name, xy in cfg["points"].items():
-        lines.append(f"{name} = {_toml_value(xy)}")
+        lines.append(f"{_toml_key(name)} = {_toml_value(xy)}")
     lines.append("")
     if not cfg["ribs"]:
         lines.append("# ribs under the plate (none); add one table per rib:")

@@ -230,7 +230,7 @@ def jsonable(obj):
     return obj
 
 
-# --- the metrologist's sections: straightness with U and a verdict, compensation summary ---
+# --- the metrologist's sections: straightness, its interval and verdict; compensation ---
 
 #: The reference line of report.json's straightness (ISO 230-1).
 STRAIGHTNESS_REFERENCE = "least-squares"
@@ -247,11 +247,12 @@ def metrologist_sections(fit, meas, s_m, *, rail_y_mm=None, tolerance_um=None,
             first. tolerance_um: the straightness tolerance (µm) of the verdict, or None.
         export: ``{"file", "format", "point"}`` of a requested compensation table, or None.
     """
-    from ..studies.straightness import K_COVERAGE, N_SAMPLES, rail_straightness
+    from ..inverse.validity import null_data
+    from ..studies.straightness import COVERAGE, INFORMATIVE_RATIO, N_SAMPLES, rail_straightness
 
     tol = None if tolerance_um is None else tolerance_um * 1e-6
     y = None if rail_y_mm is None else [v * 1e-3 for v in rail_y_mm]
-    rows = rail_straightness(fit, s_m, rail_y=y, tolerance=tol,
+    rows = rail_straightness(fit, s_m, rail_y=y, tolerance=tol, informative=not null_data(meas),
                              reference=STRAIGHTNESS_REFERENCE)
     step = float(np.median(np.diff(s_m))) * 1e3
     straight = {
@@ -261,24 +262,36 @@ def metrologist_sections(fit, meas, s_m, *, rail_y_mm=None, tolerance_um=None,
         "uncertainty_method": (
             f"Monte Carlo (GUM Supplement 1): {N_SAMPLES} draws per profile from the fit's "
             "posterior (spline coefficients ~ N(fitted, covariance), structure uncertainty "
-            "included); u = RMS deviation of the draws' straightness from the fitted "
-            f"profile's; U = k·u, k = {K_COVERAGE:g}"),
-        "coverage_factor": K_COVERAGE, "samples_per_profile": N_SAMPLES, "seed": 0,
+            "included); straightness_um = the draws' median, u_um = their standard deviation, "
+            f"interval_95_um = their {(1 - COVERAGE) / 2:.1%} and {(1 + COVERAGE) / 2:.1%} "
+            "quantiles (probabilistically symmetric, asymmetric about the estimate)"),
+        "estimate_bias": (
+            "mean_profile_um is the fitted (mean) profile's peak-to-valley; bias_um = "
+            "straightness_um − mean_profile_um: noise raises a peak-to-valley, so the draws "
+            "lie above the mean profile's by about as much as the profile's uncertainty "
+            "raises it (mean_profile_um − bias_um is the first-order bias-corrected value)"),
+        "coverage_probability": COVERAGE, "samples_per_profile": N_SAMPLES, "seed": 0,
         "evaluated_s_mm": [float(s_m[0] * 1e3), float(s_m[-1] * 1e3)],
         "grid_step_mm": step,
         "tolerance_um": tolerance_um,
-        "decision_rule": "ISO 14253-1: pass if value + U <= tolerance, fail if value − U > "
-                         "tolerance, otherwise not decidable",
-        "not_in_U": (f"rail content shorter than about {2 * fit.basis.spacing * 1e3:.0f} mm "
-                     "(two knot spacings) is not resolved and not in U"
-                     + (f" (stated waviness {fit.waviness * 1e6:.3g} µm RMS)"
-                        if fit.waviness > 0 else "")),
+        "decision_rule": "ISO 14253-1 on the 95 % interval: pass if its upper end <= "
+                         "tolerance, fail if its lower end > tolerance, otherwise not "
+                         "decidable; not decidable as well where the data carry no "
+                         "information beyond the prior (every channel constant, or the draws' "
+                         f"spread at least {INFORMATIVE_RATIO * 100:g} % of the prior's)",
+        "not_in_interval": (f"rail content shorter than about {2 * fit.basis.spacing * 1e3:.0f}"
+                            " mm (two knot spacings) is not resolved and not in the interval"
+                            + (f" (stated waviness {fit.waviness * 1e6:.3g} µm RMS)"
+                               if fit.waviness > 0 else "")),
         "rails": [{"rail": r["rail"], "side": r["side"],
                    "y_mm": None if r["y"] is None else r["y"] * 1e3,
                    "plane": r["plane"], "straightness_um": r["value"] * 1e6,
-                   "u_um": r["u"] * 1e6, "U_um": r["U"] * 1e6,
+                   "mean_profile_um": r["mean_profile"] * 1e6, "bias_um": r["bias"] * 1e6,
+                   "u_um": r["u"] * 1e6,
                    "interval_95_um": [v * 1e6 for v in r["interval_95"]],
-                   "verdict": r["verdict"]} for r in rows],
+                   "prior_ratio": r["prior_ratio"], "informative": r["informative"],
+                   "verdict": r["verdict"], "verdict_reason": r["verdict_reason"]}
+                  for r in rows],
     }
     return {"straightness": straight, "compensation": _compensation_section(fit, meas, export)}
 

@@ -53,6 +53,7 @@ is read when the separator is not ``,``; values, units and directions as in the 
 """
 
 import dataclasses
+import hashlib
 import io
 import math
 import os
@@ -361,9 +362,7 @@ def import_many(paths, layout: str = "auto", x0_mm=None, notes: list | None = No
     paths = [os.fspath(p) for p in paths]
     if not paths:
         raise ValueError("no measurement file given")
-    dup = sorted({p for p in paths if paths.count(p) > 1})
-    if dup:
-        raise ValueError(f"{dup[0]}: the same measurement file is given twice (each file once)")
+    _refuse_duplicates(paths)
     profiles = list(profile) if isinstance(profile, (list, tuple)) else [profile] * len(paths)
     if len(profiles) != len(paths):
         raise ValueError(f"{len(profiles)} profiles for {len(paths)} files (one per file)")
@@ -384,6 +383,27 @@ def import_many(paths, layout: str = "auto", x0_mm=None, notes: list | None = No
             info["x0_mm"] += mid * 1e3
             info["x0_source"] = "middle of the measured targets (all files)"
     return _join(per_file, notes)
+
+
+def _refuse_duplicates(paths) -> None:
+    """Refuse a measurement file given twice — by the same path, another path to it (``./``,
+    ``..``, a symbolic or hard link) or a copy (the same bytes) — naming both: merged as new
+    data, its readings would count twice and narrow every σ by √2."""
+    seen: dict = {}
+    for p in paths:
+        try:
+            st = os.stat(p)
+            with open(p, "rb") as fh:
+                digest = hashlib.file_digest(fh, "sha256").hexdigest()
+        except OSError:
+            continue  # import_readings says why it cannot be read
+        for key, why in (((st.st_dev, st.st_ino), "the same file"),
+                         (digest, f"the same content (SHA-256 {digest[:12]}…)")):
+            if key in seen:
+                raise ValueError(f"{seen[key]} and {p}: {why}, given twice as measurement "
+                                 "files; give each file once (merged with itself, its "
+                                 "readings would count twice and narrow every σ by √2)")
+        seen[(st.st_dev, st.st_ino)] = seen[digest] = p
 
 
 def _join(per_file, notes):

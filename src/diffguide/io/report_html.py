@@ -36,14 +36,16 @@ def _rail_words(row: dict) -> str:
 
 
 def straightness_lines(section: dict) -> list[str]:
-    """One line per rail and plane: straightness, ``U`` (k = 2) and verdict (µm)."""
-    tol = section.get("tolerance_um")
+    """One line per rail and plane: straightness (the draws' median), its 95 % interval, the
+    mean profile's value, and the verdict with its reason (µm)."""
     lines = []
     for row in section["rails"]:
-        text = (f"{_rail_words(row)}: straightness {_num(row['straightness_um'])} µm, "
-                f"U = {_num(row['U_um'])} µm (k = 2)")
+        lo, hi = row["interval_95_um"]
+        text = (f"{_rail_words(row)}: straightness {_num(row['straightness_um'])} µm, 95 % "
+                f"interval {_num(lo)} … {_num(hi)} µm (mean profile's "
+                f"{_num(row['mean_profile_um'])} µm)")
         if row.get("verdict"):
-            text += f": {row['verdict']} (tolerance {tol:g} µm)"
+            text += f": {row['verdict']} ({row['verdict_reason']})"
         lines.append(text)
     return lines
 
@@ -73,12 +75,23 @@ def _straightness_table(section: dict) -> str:
             f'<tr data-rail="{r["rail"]}" data-plane="{_e(r["plane"])}">'
             f'<td>{r["rail"]}</td><td>{_e(r.get("side") or "")}{y}</td><td>{_e(r["plane"])}</td>'
             f'<td class="num" data-key="straightness_um">{_num(r["straightness_um"])}</td>'
-            f'<td class="num" data-key="U_um">{_num(r["U_um"])}</td>'
-            f'<td class="num">{_num(lo)} … {_num(hi)}</td>'
-            f'<td class="verdict {cls}" data-key="verdict">{_e(v or "no tolerance")}</td></tr>')
+            f'<td class="num" data-key="interval_95_um">{_num(lo)} … {_num(hi)}</td>'
+            f'<td class="num" data-key="mean_profile_um">{_num(r["mean_profile_um"])}</td>'
+            f'<td class="num" data-key="u_um">{_num(r["u_um"])}</td>'
+            f'<td class="verdict {cls}" data-key="verdict" '
+            f'title="{_e(r.get("verdict_reason") or "")}">'
+            f'{_e(v or "no tolerance")}</td></tr>')
     return ('<table id="straightness"><tr><th>rail</th><th>side</th><th>plane</th>'
-            '<th>straightness (µm)</th><th>U, k = 2 (µm)</th><th>95 % interval of the draws '
+            '<th>straightness: median of the draws (µm)</th><th>95 % interval of the draws '
+            '(µm)</th><th>mean profile\'s (µm)</th><th>u: standard deviation of the draws '
             '(µm)</th><th>verdict</th></tr>' + "".join(rows) + "</table>")
+
+
+def _reasons(section: dict) -> str:
+    """Each profile's verdict with its reason, as a list (none without a tolerance)."""
+    items = [f"<li>{_e(_rail_words(r))}: {_e(r['verdict'])} — {_e(r['verdict_reason'])}</li>"
+             for r in section["rails"] if r.get("verdict")]
+    return f'<ul class="note" id="verdict-reasons">{"".join(items)}</ul>' if items else ""
 
 
 def _figure(figures: dict, name: str, caption: str) -> str:
@@ -213,8 +226,10 @@ def report_html(report: dict, figures: dict | None = None) -> str:
         f"<p>Reference line: <strong>{_e(st['reference_line'])}</strong>; straightness = "
         f"{_e(st['definition'])} (s = {st['evaluated_s_mm'][0]:g} … "
         f"{st['evaluated_s_mm'][1]:g} mm, every {st['grid_step_mm']:g} mm). Uncertainty: "
-        f"{_e(st['uncertainty_method'])}. Not in U: {_e(st['not_in_U'])}.</p>",
+        f"{_e(st['uncertainty_method'])}. Bias: {_e(st['estimate_bias'])}. Not in the "
+        f"interval: {_e(st['not_in_interval'])}.</p>",
         _straightness_table(st),
+        _reasons(st),
         "" if figures else "<p class=\"note\">Figures left out (--no-plots).</p>",
         f'<p id="verdict"><strong>{_e(verdict_line(st))}</strong></p>',
         _figure(figures, "straightness.png",

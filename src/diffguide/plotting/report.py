@@ -1,6 +1,6 @@
 """Figures of ``report.html`` (matplotlib, bare ``Figure`` objects with fixed margins; never
 imported by the core): each rail's deviations from its straightness reference line with the
-straightness and ``U``, and the fit's residuals per channel."""
+straightness and its interval, and the fit's residuals per channel."""
 
 import numpy as np
 
@@ -19,9 +19,10 @@ def plot_straightness(s_mm, dev_um, sig_um, rows, *, reference: str = "least-squ
                       ax=None):
     """Per rail (columns) and plane (rows) the fitted profile's deviations from its
     ``reference`` line (µm) over ``s_mm`` (mm) with their ±2σ posterior band, the peak and the
-    valley marked, and the straightness ± U and verdict of ``rows`` (report.json's
-    ``straightness.rails``) in the title. ``dev_um``, ``sig_um``: ``(2, 2, len(s))`` (µm).
-    ``ax``: 2 × 2 Axes to draw into (default: a new figure). Returns the (2, 2) Axes."""
+    valley marked, and the straightness, its 95 % interval and the verdict of ``rows``
+    (report.json's ``straightness.rails``) in the title. ``dev_um``, ``sig_um``:
+    ``(2, 2, len(s))`` (µm). ``ax``: 2 × 2 Axes to draw into (default: a new figure). Returns
+    the (2, 2) Axes."""
     fig, axes = axes_grid(ax, 2, 2, figsize=(12, 6.4), sharex=True)
     s = np.asarray(s_mm, float)
     for row in rows:
@@ -35,8 +36,9 @@ def plot_straightness(s_mm, dev_um, sig_um, rows, *, reference: str = "least-squ
         for i, mark in ((int(np.argmax(d)), "^"), (int(np.argmin(d)), "v")):
             ax.plot(s[i], d[i], mark, color="k", ms=6)
         verdict = f", {row['verdict']}" if row.get("verdict") else ""
-        ax.set_title(f"{_rail_title(row)}\nstraightness {row['straightness_um']:.3g} µm, "
-                     f"U = {row['U_um']:.2g} µm (k = 2){verdict}", fontsize=9)
+        lo, hi = row["interval_95_um"]
+        ax.set_title(f"{_rail_title(row)}\nstraightness {row['straightness_um']:.3g} µm "
+                     f"(95 %: {lo:.3g} … {hi:.3g} µm){verdict}", fontsize=9)
         ax.set_ylabel("deviation (µm)")
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
