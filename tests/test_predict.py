@@ -21,7 +21,8 @@ import pytest
 
 from diffguide.cli import main
 from diffguide.guideway.rails import AbstractRailProfile, SplineRail
-from diffguide.inverse.predict import FitPosterior, predict
+from diffguide.inverse.error_map import check_grid, error_map
+from diffguide.inverse.predict import FitPosterior, _predict_recondensed, predict
 from diffguide.io.config import default_config, load_config, spec_from_config
 from diffguide.io.fit_posterior import (
     FORMAT_1,
@@ -330,6 +331,69 @@ def test_from_fit_refuses_a_fit_without_posterior():
 
     with pytest.raises(ValueError, match="no full posterior"):
         FitPosterior.from_fit(Old())
+
+
+def _rel(a, b):
+    """The largest difference of each quantity relative to its largest magnitude."""
+    scale = np.abs(b).max(axis=(0, 1))
+    return float(np.max(np.abs(a - b).max(axis=(0, 1)) / scale))
+
+
+def test_equal_to_the_recondensed_prediction(fitted):
+    """The prediction from the sweep of the fitted model equals the former route (the table
+    condensed again with grid lines through the requested points) to round-off, σ included:
+    on the former route's own mesh, and at nodes of the fit's mesh that no instrument stood at
+    (interpolated there: the nodal values), at a tool point above the top."""
+    _, post, meta, spec = fitted
+    mp = meta["points_m"]
+    off = {"A": (0.333, -0.077), "B": (-0.21, 0.123)}  # no grid line through them
+    nodes = {**Q, "C": (-0.25, -0.17)}  # grid lines of the fit's mesh
+    for pts, mesh in ((off, {**mp, **off}), (nodes, None)):
+        new = predict(post, spec, pts, X, measured_points=mp, mesh_points=mesh, z=0.1)
+        old = _predict_recondensed(post, spec, pts, X, measured_points=mp, z=0.1)
+        assert _rel(new.errors, old.errors) < 1e-9 and _rel(new.sigma, old.sigma) < 1e-9
+    # between the fit's nodes: interpolated, within the mesh's discretisation of the former
+    # route's (which moves grid lines: tests/test_recovery.py has the convergence)
+    new = predict(post, spec, off, X, measured_points=mp)
+    old = _predict_recondensed(post, spec, off, X, measured_points=mp)
+    assert _rel(new.errors, old.errors) < 0.05 and _rel(new.sigma, old.sigma) < 0.05
+
+
+def test_error_map_over_the_table_top(fitted, tmp_path, capsys):
+    """The grid's errors and σ are predict's at its points; the grid is checked; the command
+    line writes one row per point and position, and the figure."""
+    out, post, meta, spec = fitted
+    emap = error_map(post, spec, (3, 2), X, measured_points=meta["points_m"])
+    assert emap.grid_shape == (3, 2) and emap.errors.shape == (len(X), 6, 6)
+    np.testing.assert_allclose(emap.points_xy[[0, 1, 5]],
+                               [[-0.5, -0.25], [-0.5, 0.25], [0.5, 0.25]])
+    assert emap.point_names[1] == "G1_2"
+    pr = predict(post, spec, {"c": (0.0, 0.25)}, X, measured_points=meta["points_m"])
+    np.testing.assert_allclose(emap.errors[:, 3], pr.errors[:, 0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(emap.sigma[:, 3], pr.sigma[:, 0], rtol=1e-12, atol=1e-18)
+    for shape, msg in (((1, 5), r"NX must be an integer in 2 \.\. 201"),
+                       ((5, 202), r"NY must be an integer in 2 \.\. 201.*got 202"),
+                       ((5.0, 3), "NX must be an integer"),
+                       ((201, 201), "at most 2868471")):
+        with pytest.raises(ValueError, match=msg):
+            check_grid(shape, 72)
+    csv_out, png = tmp_path / "map.csv", tmp_path / "map.png"
+    assert main(["predict", "--fit", str(out), "--grid", "3x2", "--positions-mm",
+                 "-300:300:5", "--grid-plot", str(png), "--out", str(csv_out)]) == 0
+    rows = _read_csv(csv_out)
+    assert len(rows) == 5 * 6 and rows[1]["point"] == "G1_2" and png.stat().st_size > 0
+    np.testing.assert_allclose([float(r["EZX_um"]) for r in rows[3::6]],
+                               emap.errors[:, 3, 2] * 1e6, atol=1e-5)
+    assert "grid 3 x 2 over the table top" in capsys.readouterr().out
+    for argv, msg in ((["--grid", "300x11"], "--grid 300x11: grid NX must be an integer in "
+                       "2 .. 201"),
+                      (["--grid", "21by11"], "--grid must be NXxNY"),
+                      (["--grid", "3x2", "--point", "Q:0,0"], "--grid or --point/--points"),
+                      (["--point", "Q:0,0", "--grid-plot", "x.png"], "--grid-plot needs --grid")):
+        assert main(["predict", "--fit", str(out), *argv, "--out",
+                     str(tmp_path / "no.csv")]) == 2
+        assert msg in capsys.readouterr().err
+    assert not (tmp_path / "no.csv").exists()
 
 
 # ---- posterior.json read strictly: its checksum, every field's type, the machine ----

@@ -25,10 +25,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "a 'diffguide fit --out DIR' estimated, with 1σ from the fit's full posterior (rails, "
         "structure, lead and alignment nuisances). EXX includes the fitted lead (feed-screw) "
         "error when the data held EXX. Positions outside the measured range are refused "
-        "unless --extrapolate (then flagged, with their large σ). The table is condensed again "
-        "with the new points in its mesh (about a second per structure value; three with the "
-        "thickness estimated). Output CSV (written atomically): position_mm,point,x_mm,y_mm, "
-        "EXX_um..ECX_urad, EXX_sigma_um..ECX_sigma_urad, extrapolated.",
+        "unless --extrapolate (then flagged, with their large σ). The fitted model is solved "
+        "once over the positions and any point of the table top follows from the condensed "
+        "table (the shell's shape functions between the mesh nodes): --grid NXxNY gives the "
+        "error map over the whole top at every position. Output CSV (written atomically): "
+        "position_mm,point,x_mm,y_mm, EXX_um..ECX_urad, EXX_sigma_um..ECX_sigma_urad, "
+        "extrapolated.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--fit", required=True, metavar="DIR",
@@ -37,6 +39,13 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="a point on the table top (mm; repeatable), e.g. Q1:300,-100")
     p.add_argument("--points", metavar="FILE.csv",
                    help="points file: point,x_mm,y_mm (added to --point)")
+    p.add_argument("--grid", metavar="NXxNY",
+                   help="the error map: NX x NY points equally spaced over the whole table top "
+                   "(edges included; NX, NY in 2..201, at most 201x201 at 71 positions), named "
+                   "G{i}_{j}, instead of --point/--points, e.g. 21x11")
+    p.add_argument("--grid-plot", metavar="FILE.png",
+                   help="with --grid: a figure of the six errors and their σ over the table "
+                   "top at the last position")
     p.add_argument("--positions-mm", metavar="START:STOP:N",
                    help="table positions (mm, inclusive, 2 <= N <= 100000; positions x points "
                    "at most what fits 2 GB of σ Jacobians, which the message states); default "
@@ -73,9 +82,26 @@ def _points(args) -> dict:
             if name in pts:
                 raise ValueError(f"{args.points}: point {name!r} is also given by --point")
             pts[name] = xy
-    if not pts:
-        raise ValueError("give at least one point: --point NAME:X_MM,Y_MM or --points FILE.csv")
+    if not pts and not args.grid:
+        raise ValueError("give at least one point: --point NAME:X_MM,Y_MM or --points FILE.csv "
+                         "(or --grid NXxNY)")
+    if pts and args.grid:
+        raise ValueError("give --grid or --point/--points, not both")
     return pts
+
+
+def parse_grid(text: str, n_positions: int) -> tuple[int, int]:
+    """``--grid NXxNY`` → ``(NX, NY)``, checked (:func:`~diffguide.inverse.error_map.check_grid`);
+    a ``ValueError`` naming the option and the value."""
+    from ..inverse.error_map import check_grid
+
+    nx, sep, ny = str(text).strip().lower().partition("x")
+    if not (sep and nx.strip().isdigit() and ny.strip().isdigit()):
+        raise ValueError(f"--grid must be NXxNY with whole numbers (e.g. 21x11), got {text!r}")
+    try:
+        return check_grid((int(nx), int(ny)), n_positions)
+    except ValueError as exc:
+        raise ValueError(f"--grid {text}: {exc}") from None
 
 
 def _positions(args, post) -> np.ndarray:
@@ -127,6 +153,7 @@ def _machine_spec(args, meta: dict):
 
 
 def run(args) -> int:
+    from ..inverse.error_map import error_map
     from ..inverse.predict import check_size, predict
     from ..io.atomic import atomic_write_text
     from ..io.fit_posterior import read_fit_posterior
@@ -144,14 +171,38 @@ def run(args) -> int:
                _positions_option(args))
     spec, make_machine, changed = _machine_spec(args, meta)
     m = meta["machine"]
-    pred = predict(post, spec, points, x, measured_points=meta["points_m"], nx=m.get("nx"),
-                   ny=m.get("ny"), extrapolate=args.extrapolate, z=args.z_mm * 1e-3,
-                   make_machine=make_machine)
+    kw = dict(measured_points=meta["points_m"], nx=m.get("nx"), ny=m.get("ny"),
+              extrapolate=args.extrapolate, z=args.z_mm * 1e-3)
+    if args.grid_plot and not args.grid:
+        raise ValueError("--grid-plot needs --grid NXxNY")
+    if args.grid:
+        if make_machine is not None:
+            raise ValueError("--grid: the table is imported (a reduced matrix): it knows only "
+                             "its retained nodes; predict there with --point/--points")
+        pred = error_map(post, spec, parse_grid(args.grid, len(x)), x, **kw)
+    else:
+        pred = predict(post, spec, points, x, make_machine=make_machine, **kw)
     src = f"from the fit in {Path(args.fit).resolve()}" + (
         f"; WARNING: {changed} (--accept-machine-change)" if changed else "")
     atomic_write_text(args.out, prediction_csv_text(pred, src, meta.get("x0_mm")))
+    if args.grid_plot:
+        _grid_plot(args, pred)
     _summary(args, pred, time.perf_counter() - t0)
     return 0
+
+
+def _grid_plot(args, pred) -> None:
+    """``--grid-plot``: the errors and σ over the table top at the last position."""
+    from ..io.atomic import atomic_savefig
+    from ..plotting import figure_of
+    from ..plotting.errors import plot_error_map
+
+    err, sig = pred.user_units()
+    fig = figure_of(plot_error_map(
+        pred.points_xy, pred.grid_shape, err[-1], sig[-1],
+        f"errors over the table top at x = {pred.positions[-1] * 1e3:g} mm (1σ below)"))
+    atomic_savefig(fig, args.grid_plot, dpi=100)
+    say(args, f"wrote {args.grid_plot}")
 
 
 def _summary(args, pred, seconds: float) -> None:
@@ -166,7 +217,12 @@ def _summary(args, pred, seconds: float) -> None:
                + (f"; {n_out} positions extrapolated, flagged" if n_out else "") + ")"
                + ("; EXX includes the fitted lead error" if pred.lead else
                   "; no EXX data: EXX without lead error"))
-    for j, name in enumerate(pred.point_names):
+    if pred.grid_shape is not None:
+        parts = [f"{e.name} {np.max(np.abs(err[..., k])):.3g}±{np.max(sig[..., k]):.2g}"
+                 for k, e in enumerate(ERRORS)]
+        say(args, "  grid {} x {} over the table top, max |error| ± max σ: {} (µm, µrad)".format(
+            *pred.grid_shape, ", ".join(parts)))
+    for j, name in enumerate(() if pred.grid_shape else pred.point_names):
         x, y = pred.points_xy[j] * 1e3
         parts = [f"{e.name} {np.max(np.abs(err[:, j, k])):.3g}±{np.max(sig[:, j, k]):.2g}"
                  for k, e in enumerate(ERRORS)]

@@ -25,13 +25,18 @@ the thickness (or an imported table's stiffness scale): a secant over ``±h`` (`
 posterior σ within :data:`~.posterior.SECANT_STEP_LIMITS`, as the fit's own structure
 sensitivity), the table condensed at ``t̂·e^{±hσ_t}`` (scaled by ``ŝ·e^{±hσ_s}``).
 
-**The machine.** The fit's machine family interpolates the condensed table's point-recovery rows
-between thickness nodes only for the measured points (its node modes stay at the prior
-thickness), and a point puts mesh lines through itself: a new point therefore needs the table
-condensed again with the point in its mesh. :func:`predict` builds the machine of the fitted
-structure with the measured points and the requested ones (the fit's mesh plus the new
-points' lines; the fit's mesh itself when every requested point was measured) and keeps it
-(:data:`MACHINE_CACHE_SIZE` most recent) for the next call.
+**The machine, solved once.** The errors at a point are a linear map of the table's
+interface DOF (:mod:`.posterior_sweep`): :func:`predict` solves the fitted machine (the fit's
+own mesh, with the measured points' grid lines) once over the positions, with the Jacobian, and
+at the secant's two structure values, and keeps that (:data:`~.posterior_sweep.SWEEP_CACHE_SIZE`
+most recent); any point of the table top then takes its rows from the condensed table — a
+measured point its own, another one interpolated from the mesh nodes with the shell's shape
+functions (:func:`~diffguide.fe.recovery.point_rows`), the table's own FE solution there. The
+table is not condensed again for new points. (An imported table knows only its retained nodes:
+there the requested points are added to the machine's points, as before.)
+:func:`_predict_recondensed` is the former route, kept as a reference: the table condensed
+again with grid lines through the requested points; on the same mesh the two agree to
+round-off.
 
 **Where the tool is.** With a height ``z`` above the table top (the tool point, a workpiece
 feature) the body above the top turns rigidly with it: ``EXX(z) = EXX + z·EBX``,
@@ -54,14 +59,12 @@ import numpy as np
 from .._core.checks import mm_hint
 from .._core.limits import MAX_PREDICTION_BYTES, gigabytes
 from ..guideway.rails import JOINT_WIDTH, bspline_matrix
-from ..machine.build import build_machine
 from ..machine.errors import to_user
 from ..machine.kinematics import ERROR_NAMES, POSITION_RANGE, joint_errors_traced
 from .basis import RailBasis
 from .posterior import SECANT_STEP_LIMITS
+from .posterior_sweep import fitted_machine, posterior_sweep
 
-#: Machines kept by :func:`predict` (each a condensation of the table; ~1 s for ``majda2012``).
-MACHINE_CACHE_SIZE = 8
 #: A position this far (m) outside the measured range still counts as inside (round-off).
 _X_TOL = 1e-9
 _EXX, _EYX = ERROR_NAMES.index("EXX"), ERROR_NAMES.index("EYX")
@@ -156,7 +159,8 @@ class Prediction:
             error where ``lead`` is True. extrapolated: ``(n_pos,)`` outside the measured
             range. position_range: that range (m). lead: whether a lead error was fitted (EXX
             data) and is included. x_ref: the reference position (m). z: the points' height
-            above the table top (m).
+            above the table top (m). grid_shape: ``(nx, ny)`` when the points are a grid over
+            the table top, x-major (:func:`~.error_map.error_map`), else ``None``.
     """
 
     positions: np.ndarray
@@ -169,6 +173,7 @@ class Prediction:
     lead: bool
     x_ref: float
     z: float = 0.0
+    grid_shape: tuple | None = None
 
     def user_units(self) -> tuple[np.ndarray, np.ndarray]:
         """``(errors, sigma)`` in µm and µrad (:func:`diffguide.machine.errors.to_user`)."""
@@ -232,35 +237,6 @@ def _check_points(points, spec) -> dict:
     return out
 
 
-_MACHINES: dict = {}
-
-
-def _machine(spec, points: dict, nx, ny, structure: dict, log_shift: float = 0.0,
-             make_machine=None):
-    """The machine of ``spec`` at the fitted structure (the thickness, or an imported table's
-    stiffness scale, times ``e^shift``) with ``points`` (m), built by ``make_machine(points,
-    **kw)`` (default :func:`~diffguide.machine.build.build_machine` of ``spec`` on the mesh
-    ``nx``, ``ny``); kept in :data:`_MACHINES` (the last :data:`MACHINE_CACHE_SIZE`)."""
-    kw = {}
-    if "thickness" in structure:
-        kw["thickness"] = structure["thickness"]["value"] * float(np.exp(log_shift))
-    if "stiffness" in structure:
-        kw["stiffness_scale"] = structure["stiffness"]["value"] * float(np.exp(log_shift))
-    if "preload" in structure:
-        kw["preload_fraction"] = structure["preload"]["value"]
-    key = (id(spec), id(make_machine), nx, ny, tuple((k, *v) for k, v in points.items()),
-           tuple(sorted(kw.items())))
-    if key not in _MACHINES:
-        while len(_MACHINES) >= MACHINE_CACHE_SIZE:
-            _MACHINES.pop(next(iter(_MACHINES)))
-        if make_machine is None:
-            m = build_machine(spec, nx=nx, ny=ny, points=points, **kw)
-        else:
-            m = make_machine(points, **kw)
-        _MACHINES[key] = (spec, make_machine, m)
-    return _MACHINES[key][-1]
-
-
 def _errors_traced(c, dq_p, machine, positions, x_ref, basis, sigma_p):
     """Joint errors (m, rad) at every point for rail coefficients ``c`` (m, flat, on
     ``basis``) and the preload moved by ``dq_p`` prior σ of its log; and whether every
@@ -304,7 +280,8 @@ def _sweep(post: FitPosterior, machine, x, with_jacobian: bool):
 
 def predict(fit, spec, points, positions, *, measured_points: dict | None = None,
             nx: int | None = None, ny: int | None = None,
-            extrapolate: bool = False, z: float = 0.0, make_machine=None) -> Prediction:
+            extrapolate: bool = False, z: float = 0.0, make_machine=None,
+            mesh_points: dict | None = None) -> Prediction:
     """The six joint errors and their σ at ``points`` over ``positions`` (module docstring).
 
     Arguments:
@@ -324,12 +301,36 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
             ``stiffness_scale``); needed for a table imported from an FE model
             (:func:`diffguide.io.table_source.config_machine`), whose points must be retained
             nodes. Default: :func:`~diffguide.machine.build.build_machine` of ``spec``.
+        mesh_points: the points ``{name: (x, y)}`` (m) whose grid lines the table's mesh holds;
+            default ``measured_points`` (the fit's mesh; the requested points are interpolated
+            in its elements), or without them the specification's own points.
+            ``{**measured_points, **points}`` gives the mesh of :func:`_predict_recondensed`
+            (a grid line through every point).
 
-    Returns a :class:`Prediction`. ``ValueError`` for points off the table, positions as
-    above or beyond the stroke, a name given twice with two locations, or an equilibrium that
-    fails at some position.
+    The table is condensed once per structure value and fitted model, not per point set
+    (module docstring). Returns a :class:`Prediction`. ``ValueError`` for points off the
+    table, positions as above or beyond the stroke, a name given twice with two locations, or
+    an equilibrium that fails at some position.
     """
     post = FitPosterior.from_fit(fit)
+    pts, x, flags, allp = _inputs(post, spec, points, positions, measured_points, extrapolate)
+    z = _check_z(z)
+    if make_machine is not None:  # an imported table: its retained points only
+        mesh = allp
+    else:
+        given = measured_points if mesh_points is None else mesh_points
+        mesh = _check_points(given or spec.point_dict, spec)
+    sweep = posterior_sweep(post, spec, x, mesh, nx, ny, make_machine)
+    e, sig = sweep.errors(np.array(list(pts.values())).reshape(-1, 2), z)
+    return Prediction(positions=x, point_names=tuple(pts), points_xy=np.array(list(pts.values())),
+                      errors=e, sigma=sig, extrapolated=flags,
+                      position_range=tuple(post.position_range), lead=bool(len(post.lead)),
+                      x_ref=float(post.x_ref), z=z)
+
+
+def _inputs(post, spec, points, positions, measured_points, extrapolate):
+    """The checked points, positions (m), extrapolation flags, and the measured points with
+    the requested ones."""
     pts = _check_points(points, spec)
     x = np.atleast_1d(np.asarray(positions, float))
     flags = check_positions(x, post.position_range, extrapolate)
@@ -344,8 +345,18 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
             raise ValueError(f"point {k!r} is a measured point at ({allp[k][0] * 1e3:g}, "
                              f"{allp[k][1] * 1e3:g}) mm: give the new point another name")
         allp[k] = v
+    return pts, x, flags, allp
+
+
+def _predict_recondensed(fit, spec, points, positions, *, measured_points=None, nx=None,
+                         ny=None, extrapolate=False, z=0.0, make_machine=None) -> Prediction:
+    """:func:`predict` the former way (a reference): the table condensed again with grid lines
+    through the measured and the requested points, the errors and their Jacobian swept at
+    those points, the thickness's secant column from two more such machines."""
+    post = FitPosterior.from_fit(fit)
+    pts, x, flags, allp = _inputs(post, spec, points, positions, measured_points, extrapolate)
     check_size(len(x), len(allp), post.cov.shape[0])
-    machine = _machine(spec, allp, nx, ny, post.structure, 0.0, make_machine)
+    machine = fitted_machine(spec, allp, nx, ny, post.structure, 0.0, make_machine)
     sel = [list(allp).index(k) for k in pts]
     z = _check_z(z)
     e, Jm, ok = _sweep(post, machine, x, True)
@@ -413,7 +424,7 @@ def _secant_column(post: FitPosterior, spec, allp, nx, ny, x, i, name,
     h = float(np.clip(np.sqrt(max(cov_q[i], 0.0)), *SECANT_STEP_LIMITS))
     out = []
     for sign in (-1.0, 1.0):
-        m = _machine(spec, allp, nx, ny, post.structure, sign * h * s, make_machine)
+        m = fitted_machine(spec, allp, nx, ny, post.structure, sign * h * s, make_machine)
         e, _, ok = _sweep(post, m, x, False)
         if not ok:
             raise ValueError(f"the fitted model's equilibrium did not converge at the {name} "

@@ -74,3 +74,32 @@ def plot_error_field(xy, field_user, title="", components=(2, 3, 4), *, ax=None)
     if title:
         fig.suptitle(title)
     return axes
+
+
+def plot_error_map(xy, shape, errors_user, sigma_user, title="", *, ax=None):
+    """The six errors (top row) and their σ (bottom row) over a grid on the table top at one
+    position, µm / µrad.
+
+    Arguments:
+        xy: ``(NX·NY, 2)`` grid points (m), x-major (:func:`diffguide.inverse.error_map
+            .grid_points`). shape: ``(NX, NY)``. errors_user, sigma_user: ``(NX·NY, 6)`` in µm
+            and µrad. title: figure title. ax: twelve Axes (default: a new figure).
+    Returns:
+        the (2, 6) array of Axes.
+    """
+    nx, ny = shape
+    X, Y = (np.asarray(xy)[:, k].reshape(nx, ny) * 1e3 for k in (0, 1))
+    fig, axes = axes_grid(ax, 2, 6, figsize=(24, 5.4), constrained_layout=True)
+    for row, values, cmap in ((0, errors_user, "RdBu_r"), (1, sigma_user, "viridis")):
+        for k, ax_ in enumerate(axes[row]):
+            name, unit, what = ERROR_LABELS[k]
+            pc = ax_.pcolormesh(X, Y, np.asarray(values)[:, k].reshape(nx, ny),
+                                shading="gouraud", cmap=cmap)
+            fig.colorbar(pc, ax=ax_, label=unit, shrink=0.8)
+            ax_.set_title(f"{'σ ' if row else ''}{name} ({what})", fontsize=9)
+            ax_.set_aspect("equal")
+            ax_.set_xlabel("x (mm)")
+        axes[row, 0].set_ylabel("y (mm)")
+    if title:
+        fig.suptitle(title)
+    return axes

@@ -130,7 +130,7 @@ def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
     if at not in points:
         raise ValueError(f"--at must be one of the points {', '.join(points)}, got {at!r}")
     pred = predict(fit, spec, points, x_mm * 1e-3, nx=nx, ny=ny, extrapolate=True, z=z,
-                   make_machine=make_machine)
+                   make_machine=make_machine, mesh_points=points)
     if z:
         source = f"{source}; at {z * 1e3:g} mm above the table top".lstrip("; ")
     j = list(pred.point_names).index(at)
