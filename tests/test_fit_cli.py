@@ -281,3 +281,14 @@ def test_layout_csv_is_the_measured_layout_and_plan_takes_it_as_start(out_dir, t
 def test_bundled_job_raises_no_validity_warning(out_dir):
     # no false alarm: the bundled data sit well inside the model's validity
     assert json.loads((out_dir / "report.json").read_text())["validity"] == []
+
+
+def test_fanuc_without_exx_readings_is_refused_before_the_fit(tmp_path, capsys):
+    """The bundled data hold no EXX: the fit would have no lead error, and a FANUC pitch
+    table needs it. Refused before the fit (it was after it, the output folder written)."""
+    out, comp = tmp_path / "out", tmp_path / "comp.txt"
+    rc = main(["fit", "--preset", "majda2012", "--measurements", str(DATA), "--out", str(out),
+               "--export-compensation", str(comp), "--format", "fanuc", "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--format fanuc" in err and "no EXX" in err
+    assert not out.exists() and not comp.exists()

@@ -206,6 +206,7 @@ def _check_inputs(meas, args, cfg):
             raise ValueError(f"--at-z-mm must be in [-500, 2000] mm, got {args.at_z_mm:g}")
         check_tolerances(args)
         _check_export_options(args)
+        _check_lead_for_fanuc(args, meas)
     from ._report import check_tolerance
 
     check_tolerance(args)
@@ -509,6 +510,21 @@ def _check_export_options(args) -> None:
     if args.comp_format == "siemens-cec" and not side:
         raise ValueError("--format siemens-cec needs --axis-side (tool, workpiece or "
                          "Y=...,Z=...): the sign of the EYX/EZX tables depends on it")
+
+
+def _check_lead_for_fanuc(args, meas) -> None:
+    """A FANUC pitch table is the positioning error, lead included: the fit has the lead only
+    from EXX readings, so without them ``--format fanuc`` is refused before the fit (it was
+    refused after it, the output folder written)."""
+    from ..inverse.data import QUANTITIES
+
+    if args.comp_format == "fanuc" and QUANTITIES.index("EXX") not in set(
+            np.asarray(meas.quantity).tolist()):
+        raise ValueError(
+            f"--format fanuc: {', '.join(args.measurements)} hold no EXX (positioning) readings, "
+            "so the fit has no lead error of the drive, and a FANUC pitch error compensation "
+            "table holds the positioning error with it; measure EXX (a linear interferometer), "
+            "or export another --format")
 
 
 def _export_spec(args):
