@@ -227,3 +227,44 @@ def test_sign_per_channel(tables):
     eax = got[:, 2] == 3  # QUANTITIES.index("EAX")
     np.testing.assert_allclose(got[eax, 3], -ref[eax, 3], atol=1e-9)
     np.testing.assert_allclose(got[~eax, 3], ref[~eax, 3], atol=1e-9)
+
+
+def _reheader(src, dst, old: str, new: str, move=None):
+    """``src`` with its table header ``old`` replaced by ``new`` (and, with ``move``, each data
+    row's columns reordered as the header was)."""
+    lines = src.read_text(encoding=_enc(src)).splitlines()
+    out = []
+    for line in lines:
+        if line.startswith(old):
+            out.append(new)
+        elif move and out and out[-1:] and new in out and line.strip():
+            cells = line.split(",")
+            out.append(",".join(cells[i] for i in move))
+        else:
+            out.append(line)
+    dst.write_text("\n".join(out) + "\n", encoding=_enc(src))
+    return dst
+
+
+def _enc(path):
+    return "cp1252" if "iso230" in path.name else "utf-8"
+
+
+def test_builtin_profiles_read_the_common_header_variants(tmp_path):
+    """ISO 230-2's 'Pi (mm)' target column, and a 6-DOF table whose header starts with its run
+    and direction columns ('Run,Direction,Position (mm),...'): read as the examples are."""
+    iso = EXAMPLES / "iso230-2-summary.csv"
+    want = merged_table(read_any(iso.with_name(iso.name + ".canonical.csv")))
+    head = "Target (mm);"
+    variant = _reheader(iso, tmp_path / "pi.csv", head, "Pi (mm);Mean fwd;Mean bwd;s fwd;"
+                        "s bwd;R fwd;R bwd;B")
+    _same(merged_table(read_any(variant, profile="iso230-2-summary")), want)
+    six = EXAMPLES / "6dof.csv"
+    want = merged_table(read_any(six.with_name(six.name + ".canonical.csv")))
+    cols = ("Target (mm),Run,Direction,Linear (µm),Horizontal straightness (µm),"
+            "Vertical straightness (µm),Roll (µrad),Pitch (µrad),Yaw (µrad)").split(",")
+    order = [1, 2, 0, 3, 4, 5, 6, 7, 8]
+    header = ",".join(cols[i] for i in order).replace("Target (mm)", "Position (mm)")
+    variant = _reheader(six, tmp_path / "run_first.csv", "Target (mm),", header, move=order)
+    assert (tmp_path / "run_first.csv").read_text().count("Run,Direction,Position (mm)") == 1
+    _same(merged_table(read_any(variant, profile="6dof")), want)
