@@ -268,3 +268,29 @@ def test_builtin_profiles_read_the_common_header_variants(tmp_path):
     variant = _reheader(six, tmp_path / "run_first.csv", "Target (mm),", header, move=order)
     assert (tmp_path / "run_first.csv").read_text().count("Run,Direction,Position (mm)") == 1
     _same(merged_table(read_any(variant, profile="6dof")), want)
+
+
+def test_profile_settings_bind_to_their_profile():
+    """``--profile-set point=P5`` meant for the exx file landed on every file (a Wyler roll at
+    P1 read as P5, no note): with several profiles a setting names its profile, and reaches
+    only the files read through it; unqualified, it is refused naming the choice."""
+    import argparse
+
+    from diffguide.cli.import_ import load_profile_args
+
+    def profiles(names, sets):
+        return load_profile_args(argparse.Namespace(profile=names, profile_set=sets),
+                                 ["a", "b", "c"][:len(names)])
+
+    one = profiles(["exx"], ["point=P5", "x_mm=0"])
+    assert one[0]["reading"]["point"] == "P5" and one[0]["reading"]["x_mm"] == 0.0
+    a, b = profiles(["6dof", "exx"], ["exx:point=P5", "6dof:x_mm=450"])
+    assert b["reading"]["point"] == "P5" and "point" not in a["reading"]  # 6dof: point_meta
+    assert a["reading"]["x_mm"] == 450.0 and b["reading"].get("x_mm") != 450.0
+    a, b = profiles(["auto", "exx"], ["point=P5"])  # one profile: no doubt which
+    assert a is None and b["reading"]["point"] == "P5"
+    with pytest.raises(ValueError, match=r"2 profiles \(6dof, exx\); say which one.*"
+                                         r"--profile-set exx:point=P5"):
+        profiles(["6dof", "exx"], ["point=P5"])
+    with pytest.raises(ValueError, match="'wyler' is not one of the --profile options"):
+        profiles(["6dof", "exx"], ["wyler:point=P5"])

@@ -16,18 +16,33 @@ def x0_value(text: str):
             f"expected a number (mm) or 'middle', got {text!r}") from None
 
 
-def profile_sets(items) -> dict:
-    """``--profile-set KEY=VALUE`` pairs as ``{key: value}`` (numbers read as numbers)."""
-    out = {}
+def profile_sets(items, profiles=()) -> dict:
+    """``--profile-set [PROFILE:]KEY=VALUE`` items as ``{profile or None: {key: value}}``
+    (numbers read as numbers). A ``PROFILE:`` prefix binds the setting to the files read
+    through that ``--profile``; without it, the setting needs a single profile (``profiles``:
+    the distinct ``--profile`` values other than ``auto``), so that a setting meant for one
+    file never lands on another's."""
+    out: dict = {}
     for item in items or []:
-        key, sep, value = item.partition("=")
+        left, sep, value = item.partition("=")
+        prof, colon, key = left.rpartition(":")
         if not sep or not key.strip():
-            raise ValueError(f"--profile-set {item!r}: expected KEY=VALUE (a [reading] key of "
-                             "the profile, e.g. point=P5)")
+            raise ValueError(f"--profile-set {item!r}: expected [PROFILE:]KEY=VALUE (a "
+                             "[reading] key of the profile, e.g. point=P5 or exx:point=P5)")
+        target = prof.strip() if colon else None
+        if target is not None and target not in profiles:
+            raise ValueError(f"--profile-set {item!r}: {target!r} is not one of the --profile "
+                             f"options ({', '.join(profiles) or 'none'})")
+        if target is None and len(profiles) > 1:
+            raise ValueError(
+                f"--profile-set {item!r}: the files are read through {len(profiles)} profiles "
+                f"({', '.join(profiles)}); say which one it is for: --profile-set "
+                f"{profiles[-1]}:{left.strip()}={value.strip()}")
         try:
-            out[key.strip()] = float(value)
+            parsed: float | str = float(value)
         except ValueError:
-            out[key.strip()] = value.strip()
+            parsed = value.strip()
+        out.setdefault(target, {})[key.strip()] = parsed
     return out
 
 
@@ -39,9 +54,11 @@ def add_input_options(p, several: str) -> None:
                    "table onto the readings (README 'File formats', docs/file-formats.md); "
                    "once for every file, or once per file in their order ('auto': that file "
                    "in a canonical layout); default: the canonical long/wide layouts, detected")
-    p.add_argument("--profile-set", metavar="KEY=VALUE", action="append", default=None,
+    p.add_argument("--profile-set", metavar="[PROFILE:]KEY=VALUE", action="append",
+                   default=None,
                    help="set a [reading] key of the profile (repeatable), e.g. point=P5, "
-                   "x_mm=0, sign=-1")
+                   "x_mm=0, sign=-1; with several --profile options, name the one it is for: "
+                   "exx:point=P5 (it applies to the files read through that profile only)")
     p.add_argument("--encoding", default=None, metavar="NAME",
                    help="text encoding of the file(s): utf-8, utf-16, cp1252, latin-1 or any "
                    "Python codec name; default: the profile's, else detected (byte-order mark, "
@@ -104,15 +121,17 @@ def load_profile_args(args, files):
     if len(names) not in (1, len(files)):
         raise ValueError(f"{len(names)} --profile options for {len(files)} files (allowed: one "
                          "for every file, or one per file in their order)")
-    sets = profile_sets(args.profile_set)
+    used = [n for n in dict.fromkeys(names) if n != "auto"]
+    sets = profile_sets(args.profile_set, used)
     loaded = {}
     for name in dict.fromkeys(names):
         if name == "auto":
             loaded[name] = None
             continue
         prof = load_profile(name)
-        if sets:
-            prof.setdefault("reading", {}).update(sets)
+        mine = {**sets.get(None, {}), **sets.get(name, {})}
+        if mine:
+            prof.setdefault("reading", {}).update(mine)
             check_profile(prof, f"{prof['_source']} with --profile-set")
         loaded[name] = prof
     return [loaded[n] for n in (names * len(files) if len(names) == 1 else names)]
