@@ -320,6 +320,7 @@ def _read(args, cfg, info: dict):
     notes: list[str] = []
     meas = read_any(args.measurements, args.layout, args.x0_mm, notes, info,
                     allow_many_positions=args.allow_many_positions,
+                    allow_conflicts=args.accept_file_conflicts,
                     profile=load_profile_args(args, args.measurements), encoding=args.encoding)
     args.input_info = info
     if args.machine_x0_mm is not None and not args.export_compensation:

@@ -59,6 +59,9 @@ def add_input_options(p, several: str) -> None:
                    help="set a [reading] key of the profile (repeatable), e.g. point=P5, "
                    "x_mm=0, sign=-1; with several --profile options, name the one it is for: "
                    "exx:point=P5 (it applies to the files read through that profile only)")
+    p.add_argument("--accept-file-conflicts", action="store_true",
+                   help="merge files that read a channel with opposite signs (refused by "
+                   "default, naming both: a reversed sensor), each conflict then a note")
     p.add_argument("--encoding", default=None, metavar="NAME",
                    help="text encoding of the file(s): utf-8, utf-16, cp1252, latin-1 or any "
                    "Python codec name; default: the profile's, else detected (byte-order mark, "
@@ -189,7 +192,8 @@ def run(args) -> int:
         info["channels"] = sorted({f"{r.quantity} at {r.point} ({r.instrument})" for r in mine})
     source = ", ".join(args.input)
     meas = merge_readings(readings, source=source, notes=notes,  # validates what fit sees
-                          allow_many_positions=args.allow_many_positions)
+                          allow_many_positions=args.allow_many_positions,
+                          allow_conflicts=args.accept_file_conflicts)
     if args.explain:
         print("\n".join(explain_lines(infos)))
     if args.out is not None:

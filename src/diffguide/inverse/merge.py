@@ -362,19 +362,83 @@ def _rows(groups, names, scatter, floored, copies, res, source):
     return cols, row_of
 
 
+#: Two files of one channel disagree in sign when, over at least :data:`CONFLICT_MIN` common
+#: positions, the slope of one's values on the other's is negative by more than this many of
+#: its standard errors (and their correlation is below −0.5): a reversed sensor, the commonest
+#: setup slip. Two files of pure noise pass (a t of 4 on 6 degrees of freedom: p ≈ 0.004).
+CONFLICT_Z = 4.0
+CONFLICT_MIN = 8
+
+
+def file_conflicts(readings) -> list[str]:
+    """Per channel (point, quantity, instrument) read by several files: each pair of files
+    with at least :data:`CONFLICT_MIN` positions in common whose values (the mean over runs
+    and directions at each position) have opposite signs — the slope ``b`` of one file's
+    values on the other's negative by more than :data:`CONFLICT_Z` standard errors,
+    correlation below −0.5. A line per conflict, naming both files, the channel and
+    ``b ± σ_b``."""
+    by: dict = defaultdict(lambda: defaultdict(list))
+    for r in readings:
+        if r.source:
+            by[(r.point, r.quantity, r.instrument)][r.source].append(r)
+    out = []
+    for (point, quantity, inst), files in by.items():
+        names = sorted(files)
+        means = {}
+        for f in names:
+            acc = defaultdict(list)
+            for r in files[f]:
+                acc[round(r.position * 1e6)].append(r.value)
+            means[f] = {k: float(np.mean(v)) for k, v in acc.items()}
+        for i, fa in enumerate(names):
+            for fb in names[i + 1:]:
+                common = sorted(means[fa].keys() & means[fb].keys())
+                if len(common) < CONFLICT_MIN:
+                    continue
+                a = np.array([means[fa][k] for k in common])
+                b = np.array([means[fb][k] for k in common])
+                da, db = a - a.mean(), b - b.mean()
+                saa = float(da @ da)
+                if not saa > 0 or not float(db @ db) > 0:
+                    continue
+                slope = float(da @ db) / saa
+                res = db - slope * da
+                se = math.sqrt(float(res @ res) / (len(common) - 2) / saa)
+                corr = float(da @ db) / math.sqrt(saa * float(db @ db))
+                if slope + CONFLICT_Z * se < 0 and corr < -0.5:
+                    out.append(
+                        f"{quantity} at {point} ({inst}) has opposite signs in {fa} and {fb}: "
+                        f"over their {len(common)} common positions the one is {slope:.3g} ± "
+                        f"{se:.2g} × the other (correlation {corr:.2f}): a reversed sensor or "
+                        "sign convention")
+    return out
+
+
 def merge_readings(readings, source: str = "<readings>", notes: list | None = None, *,
-                   allow_many_positions: bool = False) -> Measurements:
+                   allow_many_positions: bool = False,
+                   allow_conflicts: bool = False) -> Measurements:
     """Merge runs and directions (see the module docstring) into :class:`~.data.Measurements`.
 
     More than :data:`MAX_POSITIONS` distinct positions raise ``ValueError`` before any merging
     unless ``allow_many_positions`` (:func:`check_grid`).
 
     ``notes`` (a list) receives a line for every channel whose pooled scatter was raised to its
-    floor (step 3) and for every channel merged as copies of one run (step 4)."""
+    floor (step 3) and for every channel merged as copies of one run (step 4). Files that
+    read a channel with opposite signs (:func:`file_conflicts`) raise ``ValueError`` naming
+    both, unless ``allow_conflicts`` (then a note each)."""
     readings = tuple(readings)
     if not readings:
         raise ValueError(f"{source}: no measurements")
     readings = snap_positions(readings, notes, source)
+    conflicts = file_conflicts(readings)
+    if conflicts and not allow_conflicts:
+        raise ValueError(f"{conflicts[0]}; merged, they would cancel. Fix the sign of one file "
+                         "(a profile's sign), or merge them anyway: --accept-file-conflicts "
+                         "(allow_conflicts=True)"
+                         + (f" ({len(conflicts) - 1} more such channel(s))"
+                            if len(conflicts) > 1 else ""))
+    if notes is not None:
+        notes.extend(f"{c} (merged anyway: --accept-file-conflicts)" for c in conflicts)
     check_grid(readings, source, allow_many_positions)
     names, xy = _points(readings)
     groups, rejected = _groups(readings, names)

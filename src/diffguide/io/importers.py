@@ -449,14 +449,16 @@ def read_any(
     info: dict | None = None,
     *,
     allow_many_positions: bool = False,
+    allow_conflicts: bool = False,
     profile=None,
     encoding: str | None = None,
 ):
     """Read and merge one measurement file, or several (``path`` a list: one data set,
     :func:`import_many`), in any supported layout or through a ``profile``
-    (:class:`~diffguide.inverse.data.Measurements`, SI units; ``allow_many_positions``: see
-    :func:`~diffguide.inverse.merge.merge_readings`). ``info`` receives the first file's
-    :func:`import_readings` info and, under ``"files"``, every file's."""
+    (:class:`~diffguide.inverse.data.Measurements`, SI units; ``allow_many_positions``,
+    ``allow_conflicts``: see :func:`~diffguide.inverse.merge.merge_readings`). ``info``
+    receives the first file's :func:`import_readings` info and, under ``"files"``, every
+    file's."""
     paths = [path] if isinstance(path, (str, os.PathLike)) else list(path)
     infos: list = []
     readings = import_many(paths, layout, x0_mm, notes, infos, profile=profile,
@@ -466,7 +468,8 @@ def read_any(
         info["files"] = infos
     source = ", ".join(os.fspath(p) for p in paths)
     return merge_readings(readings, source=source, notes=notes,
-                          allow_many_positions=allow_many_positions)
+                          allow_many_positions=allow_many_positions,
+                          allow_conflicts=allow_conflicts)
 
 
 #: Units of the canonical file written by :func:`format_long`.
