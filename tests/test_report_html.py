@@ -117,6 +117,10 @@ def test_json_straightness_section(fitted):
         # the peak-to-valley's bias: the draws above the mean profile's
         assert r["bias_um"] == pytest.approx(r["straightness_um"] - r["mean_profile_um"])
         assert 0 < r["bias_um"] < r["u_um"]
+        # the basic bootstrap interval, for comparison: the draws' reflected about the mean
+        # profile's value (lower: the verdict does not use it)
+        m = r["mean_profile_um"]
+        assert r["interval_95_basic_um"] == pytest.approx([2 * m - hi, 2 * m - lo])
         assert r["informative"] and r["prior_ratio"] < 0.9  # the data narrow the prior
         # ISO 14253-1 on the interval, not on value ± U
         expected = ("pass" if hi <= TOLERANCE_UM else "fail" if lo > TOLERANCE_UM else

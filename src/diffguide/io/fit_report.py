@@ -267,9 +267,14 @@ def metrologist_sections(fit, meas, s_m, *, rail_y_mm=None, tolerance_um=None,
             "quantiles (probabilistically symmetric, asymmetric about the estimate)"),
         "estimate_bias": (
             "mean_profile_um is the fitted (mean) profile's peak-to-valley; bias_um = "
-            "straightness_um − mean_profile_um: noise raises a peak-to-valley, so the draws "
-            "lie above the mean profile's by about as much as the profile's uncertainty "
-            "raises it (mean_profile_um − bias_um is the first-order bias-corrected value)"),
+            "straightness_um − mean_profile_um: the draws are rougher than the mean profile "
+            "(the fit smooths it), so they lie above its peak-to-valley. interval_95_basic_um "
+            "= [2 mean_profile_um − q97.5, 2 mean_profile_um − q2.5] (the basic bootstrap "
+            "interval, the draws reflected about mean_profile_um) is reported for comparison, "
+            "not used: it would hold for an unregularised fit, but the mean profile is "
+            "smoothed and its peak-to-valley low: on the identification battery it lay "
+            "wholly below the truth's straightness in 13 of 80 rows (the draws' interval in "
+            "none)"),
         "coverage_probability": COVERAGE, "samples_per_profile": N_SAMPLES, "seed": 0,
         "evaluated_s_mm": [float(s_m[0] * 1e3), float(s_m[-1] * 1e3)],
         "grid_step_mm": step,
@@ -289,6 +294,7 @@ def metrologist_sections(fit, meas, s_m, *, rail_y_mm=None, tolerance_um=None,
                    "mean_profile_um": r["mean_profile"] * 1e6, "bias_um": r["bias"] * 1e6,
                    "u_um": r["u"] * 1e6,
                    "interval_95_um": [v * 1e6 for v in r["interval_95"]],
+                   "interval_95_basic_um": [v * 1e6 for v in r["interval_95_basic"]],
                    "prior_ratio": r["prior_ratio"], "informative": r["informative"],
                    "verdict": r["verdict"], "verdict_reason": r["verdict_reason"]}
                   for r in rows],

@@ -25,10 +25,29 @@ straightness ``t_j``. From the draws:
   skewed, so no symmetric ``t̂ ± U`` describes it.
 
 The fitted (mean) profile's own peak-to-valley ``t(ĉ)`` is reported beside ``t̂``, and the
-**bias** ``t̂ − t(ĉ)``: noise raises a peak-to-valley (a maximum of noisy values is biased
-up, Jensen's inequality), so the draws lie above ``t(ĉ)`` by about as much as the profile's
-uncertainty raises them; ``t(ĉ) − bias`` is the first-order bias-corrected value. Rail content
-shorter than the knot grid resolves (the fit's stated waviness) is not in the interval.
+**bias** ``t̂ − t(ĉ)``: the draws are rougher than the mean profile, so they lie above its
+peak-to-valley (a maximum of noisy values is biased up). Rail content shorter than the knot
+grid resolves (the fit's stated waviness) is not in the interval.
+
+**Why the draws' own interval, not a bias-corrected one.** For an *unregularised* estimate,
+``ĉ ~ N(c_true, Σ)``, the draws ``c_j − ĉ`` mirror ``ĉ − c_true``, so the draws lie above
+``t(ĉ)`` as ``t(ĉ)`` lies above ``t(c_true)``: their interval is too high, and the basic
+bootstrap interval ``[2t(ĉ) − q_hi, 2t(ĉ) − q_lo]`` (Davison & Hinkley 1997, §5.2.1;
+:func:`basic_interval`) corrects it (on a cubic profile, σ 0.3 µm: 90 % coverage against
+the draws' 45 %). The fit is regularised: ``ĉ`` is its posterior mean, smoothed towards the
+prior, so ``t(ĉ)`` is not raised by the noise as an unregularised estimate's is (on the
+battery below it: ``t(ĉ)`` under the truth's in 48 of 80 rows, median ratio 0.98) and the
+reflection about it comes out too low. The draws are the posterior of the profile, and their
+interval is a Bayesian 95 % interval for the straightness whatever its nonlinearity (truths
+drawn from a smoothing prior: 93 % covered, the basic interval 68 %;
+``tests/test_straightness.py``). On the identification
+battery (``bench/battery_straightness.py``: 20 cases × 2 rails × 2 planes = 80 rows, truths
+not drawn from the prior, several beyond the fit's model) the draws' interval covered the
+truth's straightness in 76 of 80 rows (95 %), the 4 misses all *above* the truth (never a
+false "pass"); the basic interval covered 67 (84 %), and in 13 rows its upper end lay below
+the truth (down to 0.55 × it): a "pass" at a tolerance between the two would have been false.
+So the verdict uses the draws' interval; the basic one is reported beside it
+(``interval_95_basic``), for comparison only.
 
 **Verdict** (ISO 14253-1 with the coverage interval ``[t_lo, t_hi]``): ``"pass"``
 (conformance proved) where ``t_hi ≤ T``, ``"fail"`` (non-conformance proved) where
@@ -97,6 +116,19 @@ def coverage_interval(draws, p: float = COVERAGE) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
+def basic_interval(draws, t0: float, p: float = COVERAGE) -> tuple[float, float]:
+    """The basic (reflected) bootstrap interval of probability ``p`` (Davison & Hinkley 1997,
+    §5.2.1) for a straightness whose fitted (mean) profile gives ``t0`` and whose posterior draws
+    give ``draws`` (1-D): ``[2 t0 − q_hi, 2 t0 − q_lo]`` with ``q_lo, q_hi`` the draws'
+    :func:`coverage_interval`, each end clipped at 0 below (a straightness is ≥ 0).
+
+    The draws' departures from the fitted profile, ``c_j − ĉ``, stand for the fit's error
+    ``ĉ − c_true``; so ``t(c_j) − t(ĉ)`` stands for ``t(ĉ) − t(c_true)``, and the truth lies
+    below ``t0`` by what the draws lie above it (module docstring)."""
+    lo, hi = coverage_interval(draws, p)
+    return max(2 * t0 - hi, 0.0), max(2 * t0 - lo, 0.0)
+
+
 def decide(interval, tolerance: float | None, *, informative: bool = True) -> str | None:
     """ISO 14253-1's decision for a straightness whose coverage interval is ``interval``
     ``(lo, hi)`` against ``tolerance`` (same unit; None: no tolerance, no verdict): ``"pass"``
@@ -152,11 +184,13 @@ def uncertain_straightness(s, B, mean, cov, *, prior=None, reference: str = "lea
             compare the draws' spread with the prior's. reference: the reference line
             (:data:`REFERENCES`). n_samples, seed: the Monte Carlo.
     Returns:
-        ``{value, mean_profile, bias, u, interval_95, prior_ratio, informative}``: the
-        estimate (the draws' median), the mean profile's straightness, ``value −
-        mean_profile``, the draws' standard deviation, their 95 % interval (lengths in m);
-        the draws' spread over the prior draws' (None without ``prior``) and whether it is
-        below :data:`INFORMATIVE_RATIO`.
+        ``{value, mean_profile, bias, u, interval_95, interval_95_basic, prior_ratio,
+        informative}``: the estimate (the draws' median), the mean profile's straightness
+        ``t(ĉ)``, ``value − mean_profile``, the draws' standard deviation, their 95 % interval
+        (:func:`coverage_interval`: the verdict's) and the basic bootstrap interval
+        (:func:`basic_interval`: reported, not used; module docstring), lengths in m; the
+        draws' spread over the prior draws' (None without ``prior``) and whether it is below
+        :data:`INFORMATIVE_RATIO`.
     """
     if n_samples < 10:
         raise ValueError(f"n_samples must be >= 10, got {n_samples}")
@@ -172,8 +206,9 @@ def uncertain_straightness(s, B, mean, cov, *, prior=None, reference: str = "lea
         spread = float(base.std())
         ratio = u / spread if spread > 0 else float("inf")  # a prior without spread: none
     return {"value": value, "mean_profile": mean_profile, "bias": value - mean_profile,
-            "u": u, "interval_95": list(coverage_interval(draws)), "prior_ratio": ratio,
-            "informative": ratio is None or ratio < INFORMATIVE_RATIO}
+            "u": u, "interval_95": list(coverage_interval(draws)),
+            "interval_95_basic": list(basic_interval(draws, mean_profile)),
+            "prior_ratio": ratio, "informative": ratio is None or ratio < INFORMATIVE_RATIO}
 
 
 def rail_straightness(fit, s, *, rail_y=None, tolerance: float | None = None,
@@ -187,8 +222,8 @@ def rail_straightness(fit, s, *, rail_y=None, tolerance: float | None = None,
     ``rail_y``: the rails' Y (m), rail 1 first, to say which side each is on.
     ``informative``: False when the data carry no information at all (every channel
     constant): every verdict is then "not decidable". Returns dicts in SI (m): ``{rail, side,
-    y, plane, value, mean_profile, bias, u, interval_95, prior_ratio, informative, verdict,
-    verdict_reason}``.
+    y, plane, value, mean_profile, bias, u, interval_95, interval_95_basic, prior_ratio,
+    informative, verdict, verdict_reason}``.
     """
     s = np.asarray(s, float)
     B = fit.basis.matrix(s)
