@@ -75,14 +75,20 @@ def fitted_machine(spec, points: dict, nx, ny, structure: dict, log_shift: float
     return _MACHINES[key][-1]
 
 
-def _interface_traced(c, dq_p, machine, positions, x_ref, basis, sigma_p):
-    """``u(x) − u(x_ref)`` ``(n_pos, m)`` for rail coefficients ``c`` (m, flat, on ``basis``)
-    and the preload moved by ``dq_p`` prior σ of its log; and whether every equilibrium
-    converged."""
+def perturbed_joint_errors(c, dq_p, machine, positions, x_ref, basis, sigma_p):
+    """:func:`~diffguide.machine.kinematics.joint_errors_traced` of ``machine`` for rail
+    coefficients ``c`` (m, flat, on ``basis``) with the preload moved by ``dq_p`` prior σ
+    (``sigma_p``) of its log: the fitted model as the prediction evaluates it."""
     m = eqx.tree_at(lambda mm: mm.carriage.preload_force, machine,
                     machine.carriage.preload_force * jnp.exp(sigma_p * dq_p))
     rails = basis.rails(c.reshape(2, 2, basis.per_profile))
-    je = joint_errors_traced(m, rails, positions, x_ref)
+    return joint_errors_traced(m, rails, positions, x_ref)
+
+
+def _interface_traced(c, dq_p, machine, positions, x_ref, basis, sigma_p):
+    """``u(x) − u(x_ref)`` ``(n_pos, m)`` (:func:`perturbed_joint_errors`) and whether every
+    equilibrium converged."""
+    je = perturbed_joint_errors(c, dq_p, machine, positions, x_ref, basis, sigma_p)
     return je.interface - je.interface_ref, jnp.all(je.converged)
 
 

@@ -60,10 +60,10 @@ from .._core.checks import mm_hint
 from .._core.limits import MAX_PREDICTION_BYTES, gigabytes
 from ..guideway.rails import JOINT_WIDTH, bspline_matrix
 from ..machine.errors import to_user
-from ..machine.kinematics import ERROR_NAMES, POSITION_RANGE, joint_errors_traced
+from ..machine.kinematics import ERROR_NAMES, POSITION_RANGE
 from .basis import RailBasis
 from .posterior import SECANT_STEP_LIMITS
-from .posterior_sweep import fitted_machine, posterior_sweep
+from .posterior_sweep import fitted_machine, perturbed_joint_errors, posterior_sweep
 
 #: A position this far (m) outside the measured range still counts as inside (round-off).
 _X_TOL = 1e-9
@@ -241,10 +241,7 @@ def _errors_traced(c, dq_p, machine, positions, x_ref, basis, sigma_p):
     """Joint errors (m, rad) at every point for rail coefficients ``c`` (m, flat, on
     ``basis``) and the preload moved by ``dq_p`` prior σ of its log; and whether every
     equilibrium converged."""
-    m = eqx.tree_at(lambda mm: mm.carriage.preload_force, machine,
-                    machine.carriage.preload_force * jnp.exp(sigma_p * dq_p))
-    rails = basis.rails(c.reshape(2, 2, basis.per_profile))
-    je = joint_errors_traced(m, rails, positions, x_ref)
+    je = perturbed_joint_errors(c, dq_p, machine, positions, x_ref, basis, sigma_p)
     return je.errors, jnp.all(je.converged)
 
 
