@@ -95,16 +95,25 @@ def _interface_traced(c, dq_p, machine, positions, x_ref, basis, sigma_p):
 _interface_jit = eqx.filter_jit(_interface_traced)
 
 
-@eqx.filter_jit
-def _interface_and_jacobian(c, dq_p, machine, positions, x_ref, basis, sigma_p):
-    """``Δu`` ``(n_pos, m)``, its Jacobian in ``(c, dq_p)`` ``(n_pos, m, 4n + 1)``, and
-    convergence."""
-    def f(t):
-        du, ok = _interface_traced(t[:-1], t[-1], machine, positions, x_ref, basis, sigma_p)
-        return du, (du, ok)
+def with_jacobian(traced):
+    """The compiled ``(value, its Jacobian in (c, dq_p) (..., 4n + 1), convergence)`` of
+    ``traced(c, dq_p, machine, positions, x_ref, basis, sigma_p) -> (value, converged)``
+    (forward mode: a few hundred columns at most)."""
 
-    J, (du, ok) = jax.jacfwd(f, has_aux=True)(jnp.concatenate([c, jnp.zeros(1) + dq_p]))
-    return du, J, ok
+    @eqx.filter_jit
+    def value_and_jacobian(c, dq_p, machine, positions, x_ref, basis, sigma_p):
+        def f(t):
+            v, ok = traced(t[:-1], t[-1], machine, positions, x_ref, basis, sigma_p)
+            return v, (v, ok)
+
+        J, (v, ok) = jax.jacfwd(f, has_aux=True)(jnp.concatenate([c, jnp.zeros(1) + dq_p]))
+        return v, J, ok
+
+    return value_and_jacobian
+
+
+#: ``Δu`` ``(n_pos, m)``, its Jacobian ``(n_pos, m, 4n + 1)`` and convergence.
+_interface_and_jacobian = with_jacobian(_interface_traced)
 
 
 def abbe_matrix(z: float) -> np.ndarray:

@@ -52,7 +52,6 @@ position flagged.
 import dataclasses
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -63,7 +62,12 @@ from ..machine.errors import to_user
 from ..machine.kinematics import ERROR_NAMES, POSITION_RANGE
 from .basis import RailBasis
 from .posterior import SECANT_STEP_LIMITS
-from .posterior_sweep import fitted_machine, perturbed_joint_errors, posterior_sweep
+from .posterior_sweep import (
+    fitted_machine,
+    perturbed_joint_errors,
+    posterior_sweep,
+    with_jacobian,
+)
 
 #: A position this far (m) outside the measured range still counts as inside (round-off).
 _X_TOL = 1e-9
@@ -248,16 +252,8 @@ def _errors_traced(c, dq_p, machine, positions, x_ref, basis, sigma_p):
 _errors_jit = eqx.filter_jit(_errors_traced)
 
 
-@eqx.filter_jit
-def _errors_and_jacobian(c, dq_p, machine, positions, x_ref, basis, sigma_p):
-    """Errors ``(n_pos, n_pt, 6)``, their Jacobian in ``(c, dq_p)`` ``(..., 4n + 1)``, and
-    convergence."""
-    def f(t):
-        e, ok = _errors_traced(t[:-1], t[-1], machine, positions, x_ref, basis, sigma_p)
-        return e, (e, ok)
-
-    J, (e, ok) = jax.jacfwd(f, has_aux=True)(jnp.concatenate([c, jnp.zeros(1) + dq_p]))
-    return e, J, ok
+#: Errors ``(n_pos, n_pt, 6)``, their Jacobian ``(..., 4n + 1)`` and convergence.
+_errors_and_jacobian = with_jacobian(_errors_traced)
 
 
 def _sweep(post: FitPosterior, machine, x, with_jacobian: bool):
