@@ -29,11 +29,9 @@ from ..contact.smoothing import element_energy, element_force, element_stiffness
 
 
 def _concrete_positive(name, value, unit):
-    try:
-        ok = bool(np.all(np.asarray(value) > 0))
-    except Exception:  # traced: checked elsewhere or not at all
+    if not concrete(value):  # traced: checked elsewhere or not at all
         return
-    if not ok:
+    if not bool(np.all(np.asarray(value) > 0)):
         raise ValueError(f"{name} must be > 0 {unit}, got {value!r}")
 
 
@@ -74,18 +72,10 @@ class Carriage(eqx.Module):
                 f"{np.shape(self.xi)}"
             )
         _concrete_positive("preload_force (per element)", self.preload_force, "N")
-        try:
-            eps_ok = 0.0 < float(self.eps_ratio) < 1.0
-        except Exception:
-            eps_ok = True
-        if not eps_ok:
+        if concrete(self.eps_ratio) and not 0.0 < float(self.eps_ratio) < 1.0:
             raise ValueError(f"eps_ratio must be in (0, 1), got {self.eps_ratio!r}")
-        try:
-            norms = np.linalg.norm(np.asarray(self.row_normals), axis=1)
-            unit = bool(np.allclose(norms, 1.0, atol=1e-9))
-        except Exception:
-            unit = True
-        if not unit:
+        if concrete(self.row_normals) and not np.allclose(
+                np.linalg.norm(np.asarray(self.row_normals), axis=1), 1.0, atol=1e-9):
             raise ValueError("row_normals must be unit vectors")
 
     def resolved(self) -> "Carriage":
