@@ -6,6 +6,8 @@ docstrings griffe cannot parse. The site must need no network to view: no script
 from another host.
 """
 
+import ast
+import datetime
 import re
 import subprocess
 import sys
@@ -75,3 +77,58 @@ def test_the_python_examples_of_each_page_run(page, monkeypatch):
     namespace: dict = {}
     for block in blocks:
         exec(compile(block, str(page.relative_to(ROOT)), "exec"), namespace)
+
+
+KAC_SECTIONS = ("Added", "Changed", "Deprecated", "Removed", "Fixed", "Security")
+
+
+def test_the_changelog_is_kept_by_release():
+    """CHANGELOG.md follows Keep a Changelog 1.1.0: releases newest first, each headed
+    ``## [X.Y.Z] - YYYY-MM-DD`` (or ``- Unreleased`` for the next one only), holding only the six
+    standard sections, each at most once and in the standard order; the newest release is the
+    package's version or the next one after it; nothing is grouped by internal work sessions."""
+    text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    assert "session" not in text.lower()
+    source = (ROOT / "src" / "diffguide" / "_core" / "version.py").read_text(encoding="utf-8")
+    version = next(
+        node.value.value for node in ast.parse(source).body
+        if isinstance(node, ast.Assign) and node.targets[0].id == "__version__"
+    )
+    current = tuple(int(part) for part in version.split("."))
+
+    release = re.compile(r"## \[(\d+)\.(\d+)\.(\d+)\] - (\d{4}-\d{2}-\d{2}|Unreleased)")
+    releases = []  # [(version tuple, date or None, [section names])]
+    for number, line in enumerate(text.splitlines(), 1):
+        if line.startswith("## "):
+            match = release.fullmatch(line)
+            assert match, f"CHANGELOG.md:{number}: release heading {line!r}"
+            date = match.group(4)
+            when = None if date == "Unreleased" else datetime.date.fromisoformat(date)
+            releases.append((tuple(int(g) for g in match.group(1, 2, 3)), when, []))
+        elif line.startswith("### "):
+            assert releases, f"CHANGELOG.md:{number}: a section before the first release"
+            name = line[4:]
+            assert name in KAC_SECTIONS, f"CHANGELOG.md:{number}: section {name!r}"
+            releases[-1][2].append(name)
+        elif line.startswith("#") and number > 1:
+            raise AssertionError(f"CHANGELOG.md:{number}: heading {line!r}")
+    assert text.startswith("# Changelog\n")
+    assert releases, "no release heading"
+
+    for (newer, newer_date, _), (older, older_date, _) in zip(releases, releases[1:]):
+        assert newer > older, f"{newer} listed above {older}"
+        assert older_date is not None, f"{older} is below a newer release but unreleased"
+        if newer_date is not None:
+            assert newer_date >= older_date, f"{newer} dated before {older}"
+    for number, _, sections in releases:
+        assert len(set(sections)) == len(sections), f"{number}: a section twice"
+        order = [KAC_SECTIONS.index(name) for name in sections]
+        assert order == sorted(order), f"{number}: sections out of order {sections}"
+
+    newest, newest_date, _ = releases[0]
+    major, minor, patch = current
+    following = {(major, minor, patch + 1), (major, minor + 1, 0), (major + 1, 0, 0)}
+    if newest_date is None:
+        assert newest in following | {current}, f"Unreleased {newest} after version {version}"
+    else:
+        assert newest == current, f"newest release {newest}, version {version}"
