@@ -3,6 +3,7 @@ output."""
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -292,3 +293,23 @@ def test_fanuc_without_exx_readings_is_refused_before_the_fit(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "--format fanuc" in err and "no EXX" in err
     assert not out.exists() and not comp.exists()
+
+
+def test_the_straightness_table_states_the_slope_the_fit_leaves_undetermined(out_dir):
+    """Issue 39: EYX/EZX carry the common slope of both rails in their plane, which no
+    reading determines and the fit fixes at zero; the table's header says so, outside σ, with
+    the fitted alignment slopes of report.json (what the data showed) and what to do."""
+    text = (out_dir.parent / "comp.txt").read_text()
+    head = " ".join(ln for ln in text.splitlines() if ln.startswith("#"))
+    assert "STRAIGHTNESS SLOPE NOT DETERMINED" in head and "NOT in the sigma" in head
+    assert "measure the slope of the X motion against a straightness reference" in head
+    report = json.loads((out_dir / "report.json").read_text())
+    slopes = list(report["elastic"]["alignment_slopes_um_per_m"].values())
+    assert slopes  # the bundled data have straightness channels
+    m = re.search(r"alignment_slopes_um_per_m\): (.*?) um/m", head)
+    stated = [float(v.split("+/-")[0]) for v in m[1].split(", ")]
+    np.testing.assert_allclose(stated, slopes, rtol=5e-3, atol=1e-9)
+    sigmas = [float(v.split("+/-")[1]) for v in m[1].split(", ")]
+    assert all(np.isfinite(s) and s > 0 for s in sigmas)
+    # 1 µm/m over the ±350 mm stroke: 0.35 µm at the ends
+    assert "1 um/m of it is 0.35 um at the table's ends" in head

@@ -48,7 +48,7 @@ def _table(name, cols, rows, widths) -> str:
 def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead,
           straightness_note=None) -> dict[str, str]:
     known = sides(spec.axis_side)
-    k = value_sign(spec.heidenhain_values)
+    factor = value_sign(spec.heidenhain_values)  # C, or -C where the value is the error
     cols = {}  # compensated axis -> compensation (m)
     if exx_includes_lead is not None:
         cols["X"] = -err[:, 0]  # X carries the workpiece: C = -EXX
@@ -61,7 +61,8 @@ def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead,
             "not given (axis_side, CLI --axis-side) for EYX/EZX")
     name = spec.table_name.upper()
     names = ["NR", "AXISPOS", *cols]  # the axis keys of CfgAxes/axisList (assumed X, Y, Z)
-    rows = [[f"{i}", f"{x + x0_mm:+.4f}"] + [f"{k * c[i] * 1e3:+.7f}" for c in cols.values()]
+    rows = [[f"{i}", f"{x + x0_mm:+.4f}"]
+            + [f"{factor * c[i] * 1e3:+.7f}" for c in cols.values()]
             for i, x in enumerate(np.asarray(x_mm))]
     com = _table(f"BEGIN {name}.COM MM", names, rows, [6, 14] + [14] * len(cols))
     cma = _table("BEGIN CONFIG.CMA", ["NR", "X", "ACTIVE"], [["0", f"{name}.COM", "*"]],
