@@ -243,6 +243,25 @@ def test_every_straightness_file_states_the_undetermined_slope():
     np.testing.assert_allclose(e, ERR, atol=5e-12)
 
 
+def test_the_note_quotes_the_alignment_slopes_with_their_posterior_sigma():
+    """A fit with two straightness channels: the note quotes each channel's alignment slope
+    with the σ from the last entries of the posterior covariance (the alignment slopes close
+    v = (c, q, lead, alignment)), and says which planes carry the undetermined slope."""
+    from types import SimpleNamespace
+
+    from diffguide.studies.compensation import common_slope_note
+
+    cov = np.diag([4e-12, 1e-12, 9e-14, 2.5e-13])  # rad² for the two alignment slopes
+    fit = SimpleNamespace(fix_slope=(True, False), alignment=np.array([0.52e-6, -1.2e-6]),
+                          posterior_cov=cov)
+    note = " ".join(common_slope_note(fit, np.linspace(-250.0, 250.0, 11), x0_mm=400.0))
+    assert "EZX (vertical plane) carry" in note and "EYX" not in note.split("carry")[0]
+    assert "+0.52 +/- 0.3, -1.2 +/- 0.5 um/m" in note  # sqrt(9e-14), sqrt(2.5e-13) rad
+    assert "a*(X - 400 mm)" in note and "1 um/m of it is 0.25 um" in note
+    assert common_slope_note(SimpleNamespace(fix_slope=(False, False), alignment=np.zeros(0),
+                                             posterior_cov=np.zeros((0, 0))), [0.0, 1.0]) == ()
+
+
 # ---------------------------------------------------------------- end to end
 
 

@@ -304,12 +304,9 @@ def test_the_straightness_table_states_the_slope_the_fit_leaves_undetermined(out
     assert "STRAIGHTNESS SLOPE NOT DETERMINED" in head and "NOT in the sigma" in head
     assert "measure the slope of the X motion against a straightness reference" in head
     report = json.loads((out_dir / "report.json").read_text())
-    slopes = list(report["elastic"]["alignment_slopes_um_per_m"].values())
-    assert slopes  # the bundled data have straightness channels
-    m = re.search(r"alignment_slopes_um_per_m\): (.*?) um/m", head)
-    stated = [float(v.split("+/-")[0]) for v in m[1].split(", ")]
-    np.testing.assert_allclose(stated, slopes, rtol=5e-3, atol=1e-9)
-    sigmas = [float(v.split("+/-")[1]) for v in m[1].split(", ")]
-    assert all(np.isfinite(s) and s > 0 for s in sigmas)
+    assert any("common" in m and "slope" in m for m in report["elastic"]["gauge"])
+    # the bundled data hold angles only: no straightness channel, no alignment slope to quote
+    assert report["elastic"]["alignment_slopes_um_per_m"] == {}
+    assert "alignment slopes" not in head
     # 1 µm/m over the ±350 mm stroke: 0.35 µm at the ends
     assert "1 um/m of it is 0.35 um at the table's ends" in head

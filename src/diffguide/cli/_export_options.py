@@ -7,6 +7,20 @@ so ``--help`` stays fast."""
 #: ``--format`` choices; the same as :data:`diffguide.studies.exports.FORMATS` (tested)
 FORMATS = ("csv", "isg", "isg-cross", "siemens-cec", "heidenhain", "fanuc")
 
+#: ``--format`` help
+FORMAT_HELP = (
+    "format of --export-compensation: csv (errors and σ, µm/µrad), isg (ISG/TwinCAT CSV X EXX "
+    "... ECX, mm and rad, errors, + FILE.lis lines x/y/z, chain, workpiece_axes and "
+    "FILE.startup.lis), isg-cross (ISG cross compensation lists FILE.Y.lis, FILE.Z.lis; needs "
+    "--axis-side and --isg-axis-numbers), siemens-cec (SINUMERIK CEC $AN_CEC tables EYX->Y, "
+    "EZX->Z with the activation data; needs --axis-side), heidenhain (EXPERIMENTAL: TNC .COM "
+    "with AXISPOS + X/Y/Z columns and a .CMA; no angles), fanuc (EXPERIMENTAL: pitch of X for "
+    "parameters 3620-3624, a setting sheet; no straightness); docs: compensation-exports")
+#: ``--axis-side`` help
+AXIS_SIDE_HELP = (
+    "side of the kinematic chain of the compensating axes, which sets the sign of the EYX/EZX "
+    "tables: tool, workpiece (Y and Z alike) or Y=workpiece,Z=tool (X carries the workpiece)")
+
 #: ``{setting: (metavar, help)}``; the option of each is in
 #: :data:`~diffguide.studies.exports.settings.SETTINGS` (``--cec-axis-names`` ...)
 OPTIONS = {

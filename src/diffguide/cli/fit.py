@@ -10,7 +10,13 @@ import numpy as np
 
 from ._common import check_tolerances, say
 from ._export_options import FORMATS as EXPORT_FORMATS
-from ._export_options import add_controller_options, check_export, export_spec
+from ._export_options import (
+    AXIS_SIDE_HELP,
+    FORMAT_HELP,
+    add_controller_options,
+    check_export,
+    export_spec,
+)
 
 PRESETS = ("majda2012",)
 #: Exit code when the results are written but the elastic fit did not converge.
@@ -130,19 +136,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "--at over the stroke, in machine coordinates (X = x + --machine-x0-mm), "
                    "with σ (a column, or FILE's companion .sigma.csv); see --format")
     p.add_argument("--format", dest="comp_format", default="csv",
-                   choices=EXPORT_FORMATS,
-                   help="format of --export-compensation: csv (errors and σ, µm/µrad), isg "
-                   "(ISG/TwinCAT CSV X EXX ... ECX, mm and rad, errors, + FILE.lis lines chain/"
-                   "workpiece_axes), isg-cross (ISG cross compensation lists of Y and Z; needs "
-                   "--axis-side and --isg-axis-numbers), siemens-cec (SINUMERIK CEC $AN_CEC tables EYX->Y, EZX->Z "
-                   "with the activation data; needs --axis-side), heidenhain (EXPERIMENTAL: TNC "
-                   ".COM with AXISPOS + X/Y/Z columns, a .cma; no angles), fanuc (EXPERIMENTAL: "
-                   "pitch of X for parameters 3620-3624, a setting sheet; no straightness); "
-                   "docs: compensation-exports")
-    p.add_argument("--axis-side", default=None, metavar="SIDE",
-                   help="side of the kinematic chain of the compensating axes, which sets the "
-                   "sign of the EYX/EZX tables: tool, workpiece (Y and Z alike) or "
-                   "Y=workpiece,Z=tool (X carries the workpiece)")
+                   choices=EXPORT_FORMATS, help=FORMAT_HELP)
+    p.add_argument("--axis-side", default=None, metavar="SIDE", help=AXIS_SIDE_HELP)
     add_controller_options(p)
     p.add_argument("--comp-points", type=int, default=71,
                    help="equidistant positions of the compensation table over the stroke "

@@ -6,7 +6,14 @@ import numpy as np
 
 from .._core.limits import MAX_MESH_DIVISIONS, MAX_POSITIONS, check_range
 from ._common import add_machine_arguments, check_tolerances, machine_config
-from ._export_options import FORMATS, add_controller_options, check_export, export_spec
+from ._export_options import (
+    AXIS_SIDE_HELP,
+    FORMAT_HELP,
+    FORMATS,
+    add_controller_options,
+    check_export,
+    export_spec,
+)
 
 
 def parse_positions(text: str) -> np.ndarray:
@@ -73,18 +80,13 @@ def add_parser(sub) -> None:
         dest="comp_format",
         default="csv",
         choices=FORMATS,
-        help="format of --export-compensation: csv, isg, isg-cross (ISG cross compensation "
-        "lists of Y and Z; needs --axis-side and --isg-axis-numbers), siemens-cec (needs "
-        "--axis-side), "
-        "heidenhain (EXPERIMENTAL: the .COM/.CMA frame), fanuc (EXPERIMENTAL: pitch sheet for "
-        "parameters 3620-3624); docs: compensation-exports",
+        help=FORMAT_HELP,
     )
     p.add_argument(
         "--axis-side",
         default=None,
         metavar="SIDE",
-        help="side of the kinematic chain of the compensating axes (sign of the EYX/EZX "
-        "tables): tool, workpiece or Y=workpiece,Z=tool (X carries the workpiece)",
+        help=AXIS_SIDE_HELP,
     )
     add_controller_options(p)
     p.add_argument(

@@ -168,7 +168,8 @@ def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
     the errors and σ of :func:`diffguide.inverse.predict.predict`, the prediction with σ from
     the fit's full posterior (rails, structure, lead and alignment nuisances), EXX including the
     fitted lead error, the straightness with :func:`common_slope_note` in its header — and one
-    warning per point where a rigid-body compensation made at ``at`` would not hold. ``ValueError`` when an equilibrium over the stroke does not converge.
+    warning per point where a rigid-body compensation made at ``at`` would not hold.
+    ``ValueError`` when an equilibrium over the stroke does not converge.
     """
     from ..inverse.predict import predict
     from .exports import export_compensation

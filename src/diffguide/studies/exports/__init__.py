@@ -48,17 +48,6 @@ from .settings import merged, spec_options
 FORMATS = ("csv", "isg", "isg-cross", "siemens-cec", "heidenhain", "fanuc")
 #: Formats whose syntax could not be fully confirmed from documentation, and why.
 EXPERIMENTAL = {"heidenhain": heidenhain.EXPERIMENTAL, "fanuc": fanuc.EXPERIMENTAL}
-#: ``--format`` help text of the CLI.
-FORMAT_HELP = (
-    "format of --export-compensation: csv (errors and σ, µm/µrad), isg (ISG/TwinCAT CSV X EXX "
-    "... ECX, mm and rad, errors, + .lis lines chain/workpiece_axes), siemens-cec (SINUMERIK "
-    "CEC $AN_CEC tables EYX->Y, EZX->Z with the activation data; needs --axis-side), heidenhain "
-    "(EXPERIMENTAL: TNC .COM with AXISPOS + X/Y/Z columns and a .CMA; no angles), fanuc "
-    "(EXPERIMENTAL: pitch of X for parameters 3620-3624, a setting sheet; no straightness); "
-    "docs: compensation-exports")
-AXIS_SIDE_HELP = (
-    "side of the kinematic chain of the compensating axes, which sets the sign of the EYX/EZX "
-    "tables: tool, workpiece (Y and Z alike) or Y=workpiece,Z=tool (X carries the workpiece)")
 _WRITERS = {"isg": isg.write, "isg-cross": isg_cross.write, "siemens-cec": siemens.write,
             "heidenhain": heidenhain.write, "fanuc": fanuc.write}
 

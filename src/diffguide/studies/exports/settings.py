@@ -46,7 +46,8 @@ AXES = ("X", "Y", "Z")
 #: ``{key: (CLI option, default, allowed form)}``
 SETTINGS: dict[str, tuple[str, object, str]] = {
     "cec_axis_names": ("--cec-axis-names", {"X": "AX1", "Y": "AX2", "Z": "AX3"},
-                       "X=NAME,Y=NAME,Z=NAME (any of them; the others keep theirs), each a SINUMERIK identifier "
+                       "X=NAME,Y=NAME,Z=NAME (any of them; the others keep theirs), each a "
+                       "SINUMERIK identifier "
                        f"{AXIS_NAME.pattern}, the three distinct"),
     "fanuc_detection_unit": ("--fanuc-detection-unit", "IS-B",
                              f"{', '.join(INCREMENT_SYSTEMS)} or a length in mm in "
