@@ -17,20 +17,8 @@ import re
 
 import numpy as np
 import pytest
-from test_exports import (
-    ERR,
-    SIDES,
-    SIG,
-    X0,
-    X,
-    parse_cec,
-    parse_csv,
-    parse_fanuc,
-    parse_isg_csv,
-    parse_lis,
-    parse_tnc_table,
-    residual_at_tool,
-)
+import test_exports as manual  # the parsers written from the manuals
+from test_exports import ERR, SIDES, SIG, X0, X, residual_at_tool
 
 from diffguide.cli import main
 from diffguide.io.config import dump_config, load_config
@@ -129,22 +117,22 @@ def test_isg_cross_of_a_long_table_reserves_its_memory():
 
 def test_isg_lis_assigns_the_axes_and_the_start_up_bounds_the_records():
     files = _files("isg", axis_side=SIDES[0], isg_axis_numbers=NUMBERS, file_name="vc.csv")
-    lis = parse_lis(files[".lis"])
+    lis = manual.parse_lis(files[".lis"])
     # P-VOLC-00001..3: the logical axis numbers of the ISO 230 X, Y, Z axes
     assert (lis["x"], lis["y"], lis["z"]) == ("4", "7", "2")
-    boot = parse_lis(files[".startup.lis"])
+    boot = manual.parse_lis(files[".startup.lis"])
     assert boot["vol_comp[0].file_name"] == "vc.lis"  # P-STUP-00101: the configuration list
-    records = len(parse_isg_csv(files[""])["X"])
+    records = len(manual.parse_isg_csv(files[""])["X"])
     assert int(boot["vol_comp[0].max_records"]) == records  # P-STUP-00100, default 0
     bigger = _files("isg", isg_axis_numbers=NUMBERS, max_records=5000)
-    assert parse_lis(bigger[".startup.lis"])["vol_comp[0].max_records"] == "5000"
+    assert manual.parse_lis(bigger[".startup.lis"])["vol_comp[0].max_records"] == "5000"
     with pytest.raises(ValueError, match="max_records .*12 is less than the table's 13"):
         _files("isg", max_records=12)
 
 
 def test_isg_lis_without_axis_numbers_says_what_to_set():
     files = _files("isg", axis_side="tool")
-    lis = parse_lis(files[".lis"])
+    lis = manual.parse_lis(files[".lis"])
     assert not {"x", "y", "z"} & set(lis)
     text = " ".join(_comments(files[".lis"], "#"))
     assert "logical axis number of X, Y, Z was not given" in text
@@ -161,7 +149,7 @@ def test_fanuc_is_c_detection_unit():
     assert du == pytest.approx(1e-4)
     files = export_compensation(ExportSpec("fanuc", detection_unit_mm=du), X, ERR,
                                 exx_includes_lead=True)
-    pos, comp = parse_fanuc(files[""], du=1e-4)
+    pos, comp = manual.parse_fanuc(files[""], du=1e-4)
     i_ref = int(np.argmin(np.abs(X)))
     np.testing.assert_allclose(comp, -(ERR[:, 0] - ERR[i_ref, 0]), atol=0.05e-6 + 1e-12)
     assert "detection unit 0.0001 mm (IS-C with CMR 1" in files[""]
@@ -172,8 +160,8 @@ def test_fanuc_is_c_detection_unit():
 def test_heidenhain_value_convention_is_stated_and_settable():
     default = _files("heidenhain", axis_side="tool")
     flipped = _files("heidenhain", axis_side="tool", heidenhain_values="error")
-    _, a = parse_tnc_table(default[""])
-    _, b = parse_tnc_table(flipped[""])
+    _, a = manual.parse_tnc_table(default[""])
+    _, b = manual.parse_tnc_table(flipped[""])
     for axis in ("X", "Y", "Z"):
         np.testing.assert_allclose(np.array(b[axis], float), -np.array(a[axis], float))
     assert "heidenhain_values = compensation); UNCONFIRMED" in default[".note.txt"]
@@ -239,7 +227,7 @@ def test_every_straightness_file_states_the_undetermined_slope():
                 continue  # configuration, not values; a TNC table has no comments (.note.txt)
             holds_straightness = fmt != "fanuc"
             assert (NOTE[0] in text) == holds_straightness, (fmt, suffix)
-    x, e, _ = parse_csv(_files("csv")[""])  # the note is comments only: the table is intact
+    _, e, _ = manual.parse_csv(_files("csv")[""])  # the note is in comments: the table intact
     np.testing.assert_allclose(e, ERR, atol=5e-12)
 
 
@@ -279,7 +267,7 @@ def test_simulate_takes_the_settings_from_the_machine_file_and_the_command_line(
     cec = tmp_path / "c.mpf"
     assert main([*common, str(cec), "--format", "siemens-cec", "--cec-axis-names",
                  "X=MX"]) == 0
-    tables, _ = parse_cec(cec.read_text())
+    tables, _ = manual.parse_cec(cec.read_text())
     assert {(t["input"], t["output"]) for t in tables.values()} == {("(MX)", "(Y1)"),
                                                                     ("(MX)", "(Z1)")}
     rows = [r for r in csv.DictReader(out.open()) if r["point"] == "P5"]
@@ -287,7 +275,7 @@ def test_simulate_takes_the_settings_from_the_machine_file_and_the_command_line(
     fan = tmp_path / "f.txt"
     assert main([*common, str(fan), "--format", "fanuc", "--fanuc-detection-unit",
                  "IS-C"]) == 0
-    pos, comp = parse_fanuc(fan.read_text(), du=1e-4)
+    pos, comp = manual.parse_fanuc(fan.read_text(), du=1e-4)
     np.testing.assert_allclose(pos, [100, 250, 400, 550, 700], atol=1e-9)
     np.testing.assert_allclose(comp, -(e["EXX"] - e["EXX"][2]), atol=0.05e-6 + 1e-11)
     cross = tmp_path / "k.txt"

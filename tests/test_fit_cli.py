@@ -3,7 +3,6 @@ output."""
 
 import csv
 import json
-import re
 from pathlib import Path
 
 import numpy as np
@@ -298,7 +297,8 @@ def test_fanuc_without_exx_readings_is_refused_before_the_fit(tmp_path, capsys):
 def test_the_straightness_table_states_the_slope_the_fit_leaves_undetermined(out_dir):
     """Issue 39: EYX/EZX carry the common slope of both rails in their plane, which no
     reading determines and the fit fixes at zero; the table's header says so, outside σ, with
-    the fitted alignment slopes of report.json (what the data showed) and what to do."""
+    its size per µm/m and what to do (the alignment slopes it quotes where the data have
+    straightness channels: tests/test_export_settings.py)."""
     text = (out_dir.parent / "comp.txt").read_text()
     head = " ".join(ln for ln in text.splitlines() if ln.startswith("#"))
     assert "STRAIGHTNESS SLOPE NOT DETERMINED" in head and "NOT in the sigma" in head

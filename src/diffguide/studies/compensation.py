@@ -134,8 +134,8 @@ def common_slope_note(fit, x_mm, x0_mm: float = 0.0) -> tuple[str, ...]:
         slopes = ", ".join(f"{a * 1e6:+.3g} +/- {s_ * 1e6:.2g}"
                            for a, s_ in zip(fit.alignment, sd))
         lines.append(f"the fit's alignment slopes of the straightness channels (report.json "
-                     f"alignment_slopes_um_per_m): {slopes} um/m; the common slope is an "
-                     "unknown part of each")
+                     f"alignment_slopes_um_per_m, in its order): {slopes} um/m; the common "
+                     "slope is an unknown part of each")
     lines.append("to remove it: measure the slope of the X motion against a straightness "
                  "reference aligned to the machine (its parallelism to the axis it must "
                  "follow) and add a*(X - x0) to the table, or accept a table that corrects "
