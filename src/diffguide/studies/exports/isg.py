@@ -63,6 +63,9 @@ def config(known, file_name="", numbers=None) -> str:
         lines += [f"chain            X{''.join(wp)}{''.join(tool)}",
                   f"workpiece_axes   {1 + len(wp)}"]
     lines += [f"file[0]          {file_name or 'FILE.csv'}", "file_format[0]   ISG_CSV"]
+    lines += LIS_COMMENT.lines(["the start-up list loads this list and bounds its records: "
+                                "see the .startup.lis lines (vol_comp[0].file_name, "
+                                "vol_comp[0].max_records)"])
     return "\n".join(lines) + "\n"
 
 
