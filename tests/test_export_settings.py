@@ -202,6 +202,16 @@ def test_machine_file_export_table_round_trips_and_refuses_bad_keys(tmp_path):
     again = tmp_path / "again.toml"
     again.write_text(dump_config(cfg))
     assert load_config(again)["export"] == cfg["export"]
+    # the default file's commented [export] lines, uncommented, are the stated defaults
+    text = dump_config(cfg | {"export": {}})
+    head, table = text.split("[export]")
+    live = [ln[2:].split("  #")[0] for ln in table.splitlines()[1:] if ln.startswith("# ")]
+    defaults = tmp_path / "defaults.toml"
+    defaults.write_text(head + "[export]\n" + "\n".join(live) + "\n")
+    stated = load_config(defaults)["export"]
+    for key, value in merged().items():
+        if value is not None:
+            assert stated[key] == value, key
     for body, message in [
         ("cec_axis_names = {X = \"X1\\nM30\"}", "key 'export.cec_axis_names': X:"),
         ("fanuc_detection_unit = 0.02", "key 'export.fanuc_detection_unit': 0.02 is not allowed"),

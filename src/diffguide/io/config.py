@@ -336,7 +336,7 @@ def explain_config(path: str | os.PathLike) -> str:
             src = unused
         lines.append(f"# {k}: the machine's value  # {src}" if v is None
                      else f"{k} = {_toml_value(v)}  # {src}")
-    lines += ["", *_export_lines(cfg.get("export"))]
+    lines += ["", *_export_lines(cfg.get("export"), mark=True)]
     return "\n".join(lines) + "\n"
 
 
@@ -412,7 +412,8 @@ def dump_config(cfg: dict, title: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def _export_lines(given) -> list[str]:
+def _export_lines(given, mark: bool = False) -> list[str]:
+    """The ``[export]`` table (:mod:`diffguide.studies.exports.settings`)."""
     from ..studies.exports.settings import toml_lines
 
-    return toml_lines(given)
+    return toml_lines(given, mark)

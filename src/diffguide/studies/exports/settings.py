@@ -184,17 +184,24 @@ def check_table(body, source: str) -> dict:
     return out
 
 
-def toml_lines(given: Mapping | None = None) -> list[str]:
-    """The ``[export]`` table as TOML lines: each given setting, the others commented out with
-    their default and allowed form."""
+def toml_lines(given: Mapping | None = None, mark: bool = False) -> list[str]:
+    """The ``[export]`` table as TOML lines: each given setting (``mark``: with ``# file``),
+    the others commented out at their default (or an example where there is none) with their
+    option and allowed form."""
     given = given or {}
+    examples = {"isg_axis_numbers": ({"X": 1, "Y": 2, "Z": 3}, "none: the files say what to set"),
+                "isg_max_records": (2000, "the table's number of records")}
     lines = ["[export]  # compensation export settings (docs: compensation-exports)"]
     for key, (option, default, allowed) in SETTINGS.items():
         if key in given:
-            lines.append(f"{key} = {_toml(given[key])}")
+            lines.append(f"{key} = {_toml(given[key])}" + ("  # file" if mark else ""))
+        elif default is None:
+            example, means = examples[key]
+            lines.append(f"# {key} = {_toml(example)}  # e.g.; default: {means}; {option}; "
+                         f"allowed: {allowed}")
         else:
-            shown = "none" if default is None else _toml(default)
-            lines.append(f"# {key} = {shown}  # {option}; allowed: {allowed}")
+            lines.append(f"# {key} = {_toml(default)}  # default; {option}; allowed: "
+                         f"{allowed}")
     return lines
 
 
