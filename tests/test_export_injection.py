@@ -51,7 +51,8 @@ def test_a_hostile_name_adds_no_live_line(fmt):
     hostile = _export(fmt, HOSTILE, f"measured in {HOSTILE}")
     assert clean.keys() == hostile.keys()
     for suffix, text in hostile.items():
-        prefix = {".lis": "#", ".sigma.csv": "#", ".cma": None, ".note.txt": None}.get(
+        prefix = {".lis": "#", ".startup.lis": "#", ".sigma.csv": "#", ".cma": None,
+                  ".note.txt": None}.get(
             suffix, COMMENT[fmt])
         if suffix == ".note.txt":  # plain text, no live lines: one line per line still
             assert len(text.splitlines()) == len(clean[suffix].splitlines())
@@ -130,3 +131,21 @@ def test_simulate_with_a_hostile_rails_file_name_writes_a_clean_cec_program(tmp_
     assert any("\\x0a$AN_CEC[0,0]=99\\x0aM30" in c for c in comments)
     with (tmp_path / "e.csv").open() as fh:
         assert next(csv.reader(fh))  # the run's own CSV is intact
+
+
+def test_isg_cross_lists_keep_a_hostile_name_in_their_comments():
+    """The cross compensation lists (``#`` comments, tests/test_export_settings.py's parser)
+    and their overview: a hostile point or source name changes no live line."""
+    from test_export_settings import NUMBERS, parse_crosscomp
+
+    def export(point, source):
+        return export_compensation(ExportSpec("isg-cross", axis_side=SIDE,
+                                              isg_axis_numbers=NUMBERS), X, ERR, SIG, x0_mm=X0,
+                                   point=point, source=source, exx_includes_lead=True)
+
+    clean, hostile = export("P5", "run.csv"), export(HOSTILE, f"measured in {HOSTILE}")
+    assert clean.keys() == hostile.keys()
+    for suffix, text in hostile.items():  # every file's comments start with '#'
+        assert _live(text, "#") == _live(clean[suffix], "#"), suffix
+        assert text.isascii()
+    assert parse_crosscomp(hostile[".Z.lis"])["slave"] == NUMBERS["Z"]

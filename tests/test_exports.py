@@ -355,6 +355,10 @@ def test_simulated_machine_to_cec_and_heidenhain(tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["--format", "siemens-cec"], "--format siemens-cec needs --axis-side"),
     (["--format", "isg", "--axis-side", "Q=tool"], "axis_side: Q='tool' is not allowed"),
+    (["--format", "isg-cross", "--axis-side", "tool"], "logical axis number of X, Y, Z is "
+     "needed"),
+    (["--format", "fanuc", "--fanuc-detection-unit", "IS-Q"],
+     "--fanuc-detection-unit: 'IS-Q' is not allowed; allowed: IS-A, IS-B, IS-C"),
 ])
 def test_fit_refuses_export_options_before_any_work(tmp_path, capsys, args, message):
     data = Path(__file__).resolve().parents[1] / "data" / "majda2012_measurements.csv"

@@ -292,3 +292,21 @@ def test_fanuc_without_exx_readings_is_refused_before_the_fit(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "--format fanuc" in err and "no EXX" in err
     assert not out.exists() and not comp.exists()
+
+
+def test_the_straightness_table_states_the_slope_the_fit_leaves_undetermined(out_dir):
+    """Issue 39: EYX/EZX carry the common slope of both rails in their plane, which no
+    reading determines and the fit fixes at zero; the table's header says so, outside σ, with
+    its size per µm/m and what to do (the alignment slopes it quotes where the data have
+    straightness channels: tests/test_export_settings.py)."""
+    text = (out_dir.parent / "comp.txt").read_text()
+    head = " ".join(ln for ln in text.splitlines() if ln.startswith("#"))
+    assert "STRAIGHTNESS SLOPE NOT DETERMINED" in head and "NOT in the sigma" in head
+    assert "measure the slope of the X motion against a straightness reference" in head
+    report = json.loads((out_dir / "report.json").read_text())
+    assert any("common" in m and "slope" in m for m in report["elastic"]["gauge"])
+    # the bundled data hold angles only: no straightness channel, no alignment slope to quote
+    assert report["elastic"]["alignment_slopes_um_per_m"] == {}
+    assert "alignment slopes" not in head
+    # 1 µm/m over the ±350 mm stroke: 0.35 µm at the ends
+    assert "1 um/m of it is 0.35 um at the table's ends" in head

@@ -9,6 +9,14 @@ from pathlib import Path
 import numpy as np
 
 from ._common import check_tolerances, say
+from ._export_options import FORMATS as EXPORT_FORMATS
+from ._export_options import (
+    AXIS_SIDE_HELP,
+    FORMAT_HELP,
+    add_controller_options,
+    check_export,
+    export_spec,
+)
 
 PRESETS = ("majda2012",)
 #: Exit code when the results are written but the elastic fit did not converge.
@@ -128,18 +136,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "--at over the stroke, in machine coordinates (X = x + --machine-x0-mm), "
                    "with σ (a column, or FILE's companion .sigma.csv); see --format")
     p.add_argument("--format", dest="comp_format", default="csv",
-                   choices=("csv", "isg", "siemens-cec", "heidenhain", "fanuc"),
-                   help="format of --export-compensation: csv (errors and σ, µm/µrad), isg "
-                   "(ISG/TwinCAT CSV X EXX ... ECX, mm and rad, errors, + FILE.lis lines chain/"
-                   "workpiece_axes), siemens-cec (SINUMERIK CEC $AN_CEC tables EYX->Y, EZX->Z "
-                   "with the activation data; needs --axis-side), heidenhain (EXPERIMENTAL: TNC "
-                   ".COM with AXISPOS + X/Y/Z columns, a .cma; no angles), fanuc (EXPERIMENTAL: "
-                   "pitch of X for parameters 3620-3624, a setting sheet; no straightness); "
-                   "docs: compensation-exports")
-    p.add_argument("--axis-side", default=None, metavar="SIDE",
-                   help="side of the kinematic chain of the compensating axes, which sets the "
-                   "sign of the EYX/EZX tables: tool, workpiece (Y and Z alike) or "
-                   "Y=workpiece,Z=tool (X carries the workpiece)")
+                   choices=EXPORT_FORMATS, help=FORMAT_HELP)
+    p.add_argument("--axis-side", default=None, metavar="SIDE", help=AXIS_SIDE_HELP)
+    add_controller_options(p)
     p.add_argument("--comp-points", type=int, default=71,
                    help="equidistant positions of the compensation table over the stroke "
                    "(default 71)")
@@ -205,7 +204,7 @@ def _check_inputs(meas, args, cfg):
         if not (np.isfinite(args.at_z_mm) and -500.0 <= args.at_z_mm <= 2000.0):
             raise ValueError(f"--at-z-mm must be in [-500, 2000] mm, got {args.at_z_mm:g}")
         check_tolerances(args)
-        _check_export_options(args)
+        _check_export_options(args, cfg)
         _check_lead_for_fanuc(args, meas)
     from ._report import check_tolerance
 
@@ -490,7 +489,7 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
     points.update(measured_points)  # --at and the counts were checked before the fit
     half = cfg["machine"]["stroke_mm"] / 2
     files, warnings = fitted_compensation(
-        spec, fit, np.linspace(-half, half, args.comp_points), args.at, _export_spec(args),
+        spec, fit, np.linspace(-half, half, args.comp_points), args.at, export_spec(args, cfg),
         points=points, nx=args.nx, ny=args.ny, x0_mm=x0_mm,
         source=f"predicted by the elastic model fitted to {', '.join(args.measurements)}",
         tol_um=args.tol_um, tol_urad=args.tol_urad, z=args.at_z_mm * 1e-3,
@@ -504,13 +503,11 @@ def _export_compensation(args, cfg, spec, measured_points, fit, x0_mm=0.0) -> No
         print(f"diffguide fit: warning: {w}", file=sys.stderr)
 
 
-def _check_export_options(args) -> None:
-    """``--axis-side`` parses, the file's name fits in the table, and a format whose tables
-    need the side has it (before the fit)."""
-    side = _export_spec(args).axis_side
-    if args.comp_format == "siemens-cec" and not side:
-        raise ValueError("--format siemens-cec needs --axis-side (tool, workpiece or "
-                         "Y=...,Z=...): the sign of the EYX/EZX tables depends on it")
+def _check_export_options(args, cfg) -> None:
+    """Every refusal of the export (its options, settings and table) before the fit."""
+    half = cfg["machine"]["stroke_mm"] / 2
+    check_export(args, cfg, np.linspace(-half, half, args.comp_points),
+                 _machine_x0(args, getattr(args, "input_info", {})))
 
 
 def _check_lead_for_fanuc(args, meas) -> None:
@@ -526,13 +523,6 @@ def _check_lead_for_fanuc(args, meas) -> None:
             "so the fit has no lead error of the drive, and a FANUC pitch error compensation "
             "table holds the positioning error with it; measure EXX (a linear interferometer), "
             "or export another --format")
-
-
-def _export_spec(args):
-    """The export format with its options (:class:`diffguide.studies.exports.ExportSpec`)."""
-    from ..studies.exports import file_spec
-
-    return file_spec(args.comp_format, args.export_compensation, args.axis_side)
 
 
 def _figures(meas, fits, profiles, s_m, truth):

@@ -6,6 +6,14 @@ import numpy as np
 
 from .._core.limits import MAX_MESH_DIVISIONS, MAX_POSITIONS, check_range
 from ._common import add_machine_arguments, check_tolerances, machine_config
+from ._export_options import (
+    AXIS_SIDE_HELP,
+    FORMAT_HELP,
+    FORMATS,
+    add_controller_options,
+    check_export,
+    export_spec,
+)
 
 
 def parse_positions(text: str) -> np.ndarray:
@@ -71,18 +79,16 @@ def add_parser(sub) -> None:
         "--format",
         dest="comp_format",
         default="csv",
-        choices=("csv", "isg", "siemens-cec", "heidenhain", "fanuc"),
-        help="format of --export-compensation: csv, isg, siemens-cec (needs --axis-side), "
-        "heidenhain (EXPERIMENTAL: the .COM/.CMA frame), fanuc (EXPERIMENTAL: pitch sheet for "
-        "parameters 3620-3624); docs: compensation-exports",
+        choices=FORMATS,
+        help=FORMAT_HELP,
     )
     p.add_argument(
         "--axis-side",
         default=None,
         metavar="SIDE",
-        help="side of the kinematic chain of the compensating axes (sign of the EYX/EZX "
-        "tables): tool, workpiece or Y=workpiece,Z=tool (X carries the workpiece)",
+        help=AXIS_SIDE_HELP,
     )
+    add_controller_options(p)
     p.add_argument(
         "--machine-x0-mm",
         "--x0-mm",
@@ -200,20 +206,7 @@ def _field_plot(args, name, machine, je, positions, say) -> None:
     say(f"wrote {args.field_plot}")
 
 
-def _check_export(args) -> None:
-    """``--axis-side`` parses, the file's name fits in the table, and ``siemens-cec`` has the
-    side (before anything is written)."""
-    from ..studies.exports import file_spec
-
-    side = file_spec(args.comp_format, args.export_compensation, args.axis_side).axis_side
-    if args.comp_format == "siemens-cec" and not side:
-        raise ValueError(
-            "--format siemens-cec needs --axis-side (tool, workpiece or "
-            "Y=...,Z=...): the sign of the EYX/EZX tables depends on it"
-        )
-
-
-def _compensation(args, name, je, errs, positions, say) -> None:
+def _compensation(args, cfg, name, je, errs, positions, say) -> None:
     """``--export-compensation``: the table of ``--at`` in ``--format``, and a warning where
     another point departs from the rigid-body prediction from it."""
     import sys
@@ -221,12 +214,12 @@ def _compensation(args, name, je, errs, positions, say) -> None:
 
     from ..io.atomic import atomic_write_text
     from ..studies.compensation import location_warnings
-    from ..studies.exports import export_compensation, file_spec
+    from ..studies.exports import export_compensation
 
     what = f"rails {args.rails}" if args.rails else f"variant {args.variant}"
     j = list(je.point_names).index(args.at)
     base = Path(args.export_compensation)
-    spec = file_spec(args.comp_format, base, args.axis_side)
+    spec = export_spec(args, cfg)
     files = export_compensation(
         spec,
         positions * 1e3,
@@ -275,8 +268,8 @@ def run(args) -> int:
     cfg = machine_config(args)
     positions = _positions(args, cfg)
     check_tolerances(args)
-    if args.export_compensation:
-        _check_export(args)
+    if args.export_compensation:  # every refusal of the export, before any work
+        check_export(args, cfg, positions * 1e3, args.machine_x0_mm)
     nx, ny = parse_mesh(args.mesh) if args.mesh else (None, None)
     rails = read_rails_csv(args.rails) if args.rails else paper_variant(args.variant)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
@@ -306,7 +299,7 @@ def run(args) -> int:
     if args.field_plot:
         _field_plot(args, name, machine, je, positions, say)
     if args.export_compensation:
-        _compensation(args, name, je, errs, positions, say)
+        _compensation(args, cfg, name, je, errs, positions, say)
     if args.plot:
         _plot(args, name, je, errs, positions, say)
     for w in _validity(args, machine, rails, positions, je):

@@ -137,6 +137,11 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
                     )
                 cfg["fit"][key] = _check(value, FIT_SCHEMA[key], f"{source}: key 'fit.{key}'")
             continue
+        if section == "export":  # the compensation exports' controller settings
+            from ..studies.exports.settings import check_table
+
+            cfg["export"] = check_table(body, source)
+            continue
         if section == "points":
             if not isinstance(body, dict) or not body:
                 raise ValueError(f"{where}: must be a table of name = [x_mm, y_mm] entries")
@@ -148,7 +153,7 @@ def validate_config(raw: dict, source: str = "<config>") -> dict:
         if section not in schema():
             raise ValueError(
                 f"{where}: unknown section; allowed: "
-                f"{', '.join([*schema(), 'points', 'ribs', 'fit'])}"
+                f"{', '.join([*schema(), 'points', 'ribs', 'fit', 'export'])}"
             )
         if not isinstance(body, dict):
             raise ValueError(f"{where}: must be a table of keys")
@@ -331,6 +336,7 @@ def explain_config(path: str | os.PathLike) -> str:
             src = unused
         lines.append(f"# {k}: the machine's value  # {src}" if v is None
                      else f"{k} = {_toml_value(v)}  # {src}")
+    lines += ["", *_export_lines(cfg.get("export"), mark=True)]
     return "\n".join(lines) + "\n"
 
 
@@ -402,4 +408,12 @@ def dump_config(cfg: dict, title: str = "") -> str:
             lines.append(f"# {k} = [value, lo, hi]  # {spec[4]}; default: the machine's value")
         else:
             lines.append(f"{k} = {_toml_value(v)}  # {spec[4]}")
+    lines += ["", *_export_lines(cfg.get("export"))]
     return "\n".join(lines) + "\n"
+
+
+def _export_lines(given, mark: bool = False) -> list[str]:
+    """The ``[export]`` table (:mod:`diffguide.studies.exports.settings`)."""
+    from ..studies.exports.settings import toml_lines
+
+    return toml_lines(given, mark)

@@ -308,6 +308,7 @@ def config_from_spec(spec) -> dict:
         {key: _user(_get(rib, k[0]), k[1]) for key, k in RIB_KEYS.items()} for rib in spec.ribs
     ]
     cfg["fit"] = {key: v[0] for key, v in FIT_SCHEMA.items()}
+    cfg["export"] = {}  # the compensation exports' settings given (studies.exports.settings)
     return cfg
 
 

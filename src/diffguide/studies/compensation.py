@@ -96,6 +96,53 @@ def location_warnings(
     return out
 
 
+#: each plane's straightness: (plane, the error its common slope tilts)
+_PLANES = (("vertical", "EZX"), ("horizontal", "EYX"))
+
+
+def common_slope_note(fit, x_mm, x0_mm: float = 0.0) -> tuple[str, ...]:
+    """What a fit's straightness (EYX, EZX) leaves undetermined, for an export's header.
+
+    A common slope ``a`` of both rails in one plane moves the table by ``a·x`` and tilts it by
+    a constant: the angles (relative to x = 0) do not see it and a straightness channel's own
+    alignment slope takes it (:mod:`diffguide.inverse.basis`), so the fit fixes it at zero
+    (``fit.fix_slope``, report.json's gauge). The machine's straightness is then the table's
+    value plus ``a·(X − x0)`` with ``a`` unknown and outside σ. Where the fit has straightness
+    channels, their fitted alignment slopes (µm/m, with their posterior σ) bound what the data
+    showed: the common slope is an unknown part of each.
+
+    Arguments: fit: the :class:`~diffguide.inverse.RailFit`. x_mm: the table's positions (mm,
+    x = 0 the reference). x0_mm: the machine coordinate of x = 0 (mm).
+    """
+    planes = [f"{e} ({p} plane)" for (p, e), fixed in zip(_PLANES, fit.fix_slope) if fixed]
+    if not planes:
+        return ()
+    reach = float(np.max(np.abs(np.asarray(x_mm, float)))) * 1e-3  # µm per µm/m at the ends
+    lines = [
+        f"STRAIGHTNESS SLOPE NOT DETERMINED: {' and '.join(planes)} carry the fit's "
+        "undetermined common slope of both rails in their plane, fixed at zero (report.json: "
+        "identifiability gauge, fixed modes 'common ... slope of both rails')",
+        f"the machine's EYX/EZX may differ from these values by a*(X - {x0_mm:g} mm), a the "
+        f"unknown slope; it is NOT in the sigma; 1 um/m of it is {reach:.3g} um at the "
+        "table's ends",
+    ]
+    n = len(fit.alignment)
+    if n:
+        cov = np.asarray(fit.posterior_cov, float)
+        sd = (np.sqrt(np.clip(np.diag(cov)[-n:], 0.0, None)) if cov.shape[0] >= n
+              else np.full(n, np.nan))
+        slopes = ", ".join(f"{a * 1e6:+.3g} +/- {s_ * 1e6:.2g}"
+                           for a, s_ in zip(fit.alignment, sd))
+        lines.append(f"the fit's alignment slopes of the straightness channels (report.json "
+                     f"alignment_slopes_um_per_m, in its order): {slopes} um/m; the common "
+                     "slope is an unknown part of each")
+    lines.append("to remove it: measure the slope of the X motion against a straightness "
+                 "reference aligned to the machine (its parallelism to the axis it must "
+                 "follow) and add a*(X - x0) to the table, or accept a table that corrects "
+                 "straightness about this reference line only")
+    return tuple(lines)
+
+
 def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
                         nx: int | None = None, ny: int | None = None, x0_mm: float = 0.0,
                         source: str = "", tol_um: float = 2.0,
@@ -120,8 +167,9 @@ def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
     Returns ``({suffix: text}, warnings)``: :func:`~.exports.export_compensation`'s files —
     the errors and σ of :func:`diffguide.inverse.predict.predict`, the prediction with σ from
     the fit's full posterior (rails, structure, lead and alignment nuisances), EXX including the
-    fitted lead error — and one warning per point where a rigid-body compensation made at ``at``
-    would not hold. ``ValueError`` when an equilibrium over the stroke does not converge.
+    fitted lead error, the straightness with :func:`common_slope_note` in its header — and one
+    warning per point where a rigid-body compensation made at ``at`` would not hold.
+    ``ValueError`` when an equilibrium over the stroke does not converge.
     """
     from ..inverse.predict import predict
     from .exports import export_compensation
@@ -139,6 +187,7 @@ def fitted_compensation(spec, fit, x_mm, at: str, fmt: str, *, points: dict,
     # unknown and EXX is left out of the table (exports' rule)
     files = export_compensation(fmt, x_mm, pred.errors[:, j, :], pred.sigma[:, j, :],
                                 x0_mm=x0_mm, point=at, source=source,
-                                exx_includes_lead=True if pred.lead else None)
+                                exx_includes_lead=True if pred.lead else None,
+                                straightness_note=common_slope_note(fit, x_mm, x0_mm))
     warnings = location_warnings(errs, pred.point_names, pred.points_xy, at, tol_um, tol_urad)
     return files, warnings

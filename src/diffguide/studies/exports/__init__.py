@@ -20,7 +20,10 @@ Formats (``FORMATS``; sources in each module and in docs/compensation-exports.md
 
 - ``csv`` — ``X_machine_mm,x_mm,EXX_um,EXX_sigma_um,...,ECX_urad,ECX_sigma_urad``.
 - ``isg`` — ISG CSV (``X EXX ... ECX``, mm and rad, errors) + ``.lis`` configuration lines
-  (``chain``, ``workpiece_axes``) (:mod:`.isg`).
+  (axis numbers ``x y z``, ``chain``, ``workpiece_axes``) + ``.startup.lis`` start-up lines
+  (``vol_comp[0].file_name``, ``max_records``) (:mod:`.isg`).
+- ``isg-cross`` — ISG cross compensation lists ``kw.crosscomp.*``, one per compensated axis
+  (``.Y.lis``, ``.Z.lis``; 0.1 µm), EYX on Y, EZX on Z (:mod:`.isg_cross`).
 - ``siemens-cec`` — SINUMERIK CEC init program for EYX on Y, EZX on Z, with the activation data
   as comments (:mod:`.siemens`).
 - ``heidenhain`` — TNC nonlinear compensation ``NAME.COM`` (``NR AXISPOS X Y Z``) +
@@ -35,39 +38,34 @@ from pathlib import Path
 
 import numpy as np
 
-from . import fanuc, heidenhain, isg, plain, siemens
+from . import fanuc, heidenhain, isg, isg_cross, plain, siemens
 from ._common import SIDES as SIDES
 from ._common import ExportSpec as ExportSpec
 from ._common import parse_axis_side as parse_axis_side
 from .plain import sigma_csv as sigma_csv
+from .settings import merged, spec_options
 
-FORMATS = ("csv", "isg", "siemens-cec", "heidenhain", "fanuc")
+FORMATS = ("csv", "isg", "isg-cross", "siemens-cec", "heidenhain", "fanuc")
 #: Formats whose syntax could not be fully confirmed from documentation, and why.
 EXPERIMENTAL = {"heidenhain": heidenhain.EXPERIMENTAL, "fanuc": fanuc.EXPERIMENTAL}
-#: ``--format`` help text of the CLI.
-FORMAT_HELP = (
-    "format of --export-compensation: csv (errors and σ, µm/µrad), isg (ISG/TwinCAT CSV X EXX "
-    "... ECX, mm and rad, errors, + .lis lines chain/workpiece_axes), siemens-cec (SINUMERIK "
-    "CEC $AN_CEC tables EYX->Y, EZX->Z with the activation data; needs --axis-side), heidenhain "
-    "(EXPERIMENTAL: TNC .COM with AXISPOS + X/Y/Z columns and a .CMA; no angles), fanuc "
-    "(EXPERIMENTAL: pitch of X for parameters 3620-3624, a setting sheet; no straightness); "
-    "docs: compensation-exports")
-AXIS_SIDE_HELP = (
-    "side of the kinematic chain of the compensating axes, which sets the sign of the EYX/EZX "
-    "tables: tool, workpiece (Y and Z alike) or Y=workpiece,Z=tool (X carries the workpiece)")
-_WRITERS = {"isg": isg.write, "siemens-cec": siemens.write, "heidenhain": heidenhain.write,
-            "fanuc": fanuc.write}
+_WRITERS = {"isg": isg.write, "isg-cross": isg_cross.write, "siemens-cec": siemens.write,
+            "heidenhain": heidenhain.write, "fanuc": fanuc.write}
 
 
-def file_spec(fmt: str, path: str | os.PathLike, axis_side: str | None = None) -> ExportSpec:
+def file_spec(fmt: str, path: str | os.PathLike, axis_side: str | None = None,
+              settings: dict | None = None) -> ExportSpec:
     """The :class:`ExportSpec` of an export written to ``path`` (the command line's
     ``--export-compensation``): the table named after the file (its stem, upper case), the
-    file's name on the configuration lines, ``axis_side`` as :func:`parse_axis_side` reads it.
-    ``ValueError`` naming the file where its name cannot be written into the table."""
+    file's name on the configuration lines, ``axis_side`` as :func:`parse_axis_side` reads it,
+    the controller ``settings`` (:func:`.settings.merged`: the command line's over the machine
+    file's over the defaults). ``ValueError`` naming the file where its name cannot be written
+    into the table."""
     path = Path(path)
     side = None if axis_side is None else parse_axis_side(axis_side)
+    options = spec_options(merged() if settings is None else settings)
     try:
-        return ExportSpec(fmt, axis_side=side, table_name=path.stem.upper(), file_name=path.name)
+        return ExportSpec(fmt, axis_side=side, table_name=path.stem.upper(), file_name=path.name,
+                          **options)
     except ValueError as exc:
         raise ValueError(f"--export-compensation {path}: the file's name is written into the "
                          f"table: {exc}") from None
@@ -85,6 +83,7 @@ def export_compensation(
     detection_unit_mm: float | None = None,
     axis_side=None,
     exx_includes_lead: bool | None = None,
+    straightness_note: tuple[str, ...] | None = None,
 ) -> dict[str, str]:
     """The files of a compensation export: ``{suffix: text}``, ``""`` the table itself, and
     companions by format (``.sigma.csv`` the σ where the table has no room for it, ``.cma``,
@@ -100,6 +99,9 @@ def export_compensation(
         exx_includes_lead: whether EXX includes the fitted lead error (``True``), has none
             (``False``: a simulation), or is unknown (``None``: EXX left out, ``fanuc``
             refused).
+        straightness_note: lines for the header of every file holding EYX or EZX: what the
+            straightness leaves undetermined (a fit's common slope:
+            :func:`diffguide.studies.compensation.common_slope_note`).
 
     ``ValueError`` with the reason where a table cannot be written (module docstring).
     """
@@ -115,10 +117,12 @@ def export_compensation(
     sig = None if sigma is None else np.asarray(sigma, float)
     if err.shape != (len(x_mm), 6) or (sig is not None and sig.shape != err.shape):
         raise ValueError("errors (and sigma) must have shape (n_positions, 6)")
-    kw = dict(x0_mm=x0_mm, point=point, source=source, exx_includes_lead=exx_includes_lead)
+    kw = dict(x0_mm=x0_mm, point=point, source=source, exx_includes_lead=exx_includes_lead,
+              straightness_note=tuple(straightness_note or ()))
     if spec.format == "csv":
         return plain.write(x_mm, err, sig, **kw)
     files = _WRITERS[spec.format](x_mm, err, spec=spec, **kw)
     if sig is not None:
-        files[".sigma.csv"] = sigma_csv(x_mm, sig, x0_mm, point, exx_includes_lead)
+        note = kw["straightness_note"] if spec.format != "fanuc" else ()
+        files[".sigma.csv"] = sigma_csv(x_mm, sig, x0_mm, point, exx_includes_lead, note)
     return files

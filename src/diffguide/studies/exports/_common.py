@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..._core.comments import CommentSyntax
+from . import settings
+from .settings import AXIS_NAME as AXIS_NAME
 
 SIDES = ("tool", "workpiece")
 #: The compensating axis of each cross-axis error of the X axis.
@@ -43,7 +45,14 @@ class ExportSpec:
         reference_mm: ``fanuc``: machine coordinate (mm) of the reference position; default
             the machine coordinate of x = 0.
         first_number: ``fanuc``: number of the first compensation point (0 to 1023).
-        detection_unit_mm: ``fanuc``: detection unit (mm).
+        detection_unit_mm: ``fanuc``: detection unit (mm; IS-B 0.001, IS-C 0.0001).
+        isg_axis_numbers: ``isg``, ``isg-cross``: the ISG logical axis numbers of X, Y, Z
+            (P-VOLC-00001..3, ``kopf.achs_nr``); no default (the files say what to set).
+        max_records: ``isg``: start-up ``vol_comp[0].max_records``; default the table's
+            number of records.
+        heidenhain_values, isg_cross_values: what a value of that format is:
+            ``"compensation"`` (the controller adds it to the axis) or ``"error"`` (the
+            controller subtracts it); unconfirmed from the documentation, so stated.
     """
 
     format: str
@@ -55,15 +64,33 @@ class ExportSpec:
     reference_mm: float | None = None
     first_number: int = 0
     detection_unit_mm: float = 0.001
+    isg_axis_numbers: Mapping[str, int] | None = None
+    max_records: int | None = None
+    heidenhain_values: str = "compensation"
+    isg_cross_values: str = "compensation"
 
     def __post_init__(self):
-        """The names the format writes outside its comments, checked (:func:`check_name`)."""
-        if self.format == "siemens-cec":
-            for axis, name in dict(self.axis_names).items():
-                check_name(name, f"axis_names[{axis!r}]", AXIS_NAME)
+        """The settings (:mod:`.settings`) and the names the format writes outside its
+        comments, checked (:func:`check_name`)."""
+        for axis, name in dict(self.axis_names).items():
+            check_name(name, f"axis_names[{axis!r}]", AXIS_NAME)
+        names = settings.check("cec_axis_names", dict(self.axis_names), "axis_names")
+        if set(names) != set(settings.AXES):
+            raise ValueError(f"axis_names: {dict(self.axis_names)!r}: X, Y and Z need three "
+                             "distinct names")
+        object.__setattr__(self, "axis_names", names)
+        object.__setattr__(self, "detection_unit_mm", settings.check(
+            "fanuc_detection_unit", self.detection_unit_mm, "detection_unit_mm"))
+        if self.isg_axis_numbers is not None:
+            object.__setattr__(self, "isg_axis_numbers", settings.check(
+                "isg_axis_numbers", dict(self.isg_axis_numbers), "isg_axis_numbers"))
+        if self.max_records is not None:
+            settings.check("isg_max_records", self.max_records, "max_records")
+        settings.check("heidenhain_values", self.heidenhain_values, "heidenhain_values")
+        settings.check("isg_cross_values", self.isg_cross_values, "isg_cross_values")
         if self.format == "heidenhain":
             check_name(self.table_name, "table_name", TABLE_NAME)
-        if self.format == "isg" and self.file_name:
+        if self.format in ("isg", "isg-cross") and self.file_name:
             check_name(self.file_name, "file_name", FILE_NAME)
 
 
@@ -76,7 +103,6 @@ FANUC_COMMENT = CommentSyntax("#")
 NOTE_TEXT = CommentSyntax("", ascii_only=False)
 
 #: names written on live lines (outside comments), refused rather than escaped otherwise
-AXIS_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # a SINUMERIK axis identifier
 TABLE_NAME = re.compile(r"[A-Za-z0-9_-]+")  # a TNC table name (NAME.COM)
 FILE_NAME = re.compile(r"[A-Za-z0-9_.+-]+")  # a file name on an ISG configuration line
 
@@ -138,13 +164,34 @@ def lead_line(exx_includes_lead) -> str:
             "without it a pitch (positioning) table would be wrong")
 
 
-def header_lines(point, source, x0_mm, values, exx_includes_lead) -> list[str]:
+def header_lines(point, source, x0_mm, values, exx_includes_lead,
+                 straightness_note=None) -> list[str]:
+    """The lines every header starts with; ``straightness_note``: lines (a fit's statement of
+    the common slope its straightness leaves undetermined) for a file that holds EYX or EZX."""
     return [
         f"diffguide compensation table, point {point}" + (f"; {source}" if source else ""),
         f"machine coordinates: X = x + x0, x0 = {x0_mm:g} mm (x = 0: the reference position)",
         values,
         lead_line(exx_includes_lead),
+        *(straightness_note or ()),
     ]
+
+
+def value_sign(values: str) -> float:
+    """The factor from the compensation ``C`` to the value written: ``+1`` where the controller
+    adds the value (``"compensation"``), ``−1`` where it subtracts it (``"error"``)."""
+    return 1.0 if values == "compensation" else -1.0
+
+
+def values_line(values: str, fmt: str, key: str) -> str:
+    """The header's statement of an unconfirmed value convention (setting ``key``)."""
+    what = ("the compensation C: the controller adds it to the axis" if values == "compensation"
+            else "the error -C: the controller subtracts it from the axis")
+    other = "error" if values == "compensation" else "compensation"
+    option = "--" + key.replace("_", "-")
+    return (f"values: {what} ({key} = {values}); UNCONFIRMED: the {fmt} documentation read "
+            "does not state the sign: check one point on the machine, and if the error "
+            f"doubles, export again with {option} {other} ([export] {key} = \"{other}\")")
 
 
 def equidistant_step(x_mm, fmt: str) -> float:

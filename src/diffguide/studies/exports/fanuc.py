@@ -25,13 +25,20 @@ documentation.
 import numpy as np
 
 from ._common import FANUC_COMMENT, equidistant_step, header_lines, lead_line
+from .settings import INCREMENT_SYSTEMS
 
 EXPERIMENTAL = ("a setting sheet for the parameter screen, not a punch tape (the tape numbering "
                 "of pitch data was not confirmed)")
 MAX_VALUE = 127  # the documented range of one pitch value is -128..127 (× magnification)
 
 
-def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[str, str]:
+def _unit_name(du: float) -> str:
+    names = [k for k, v in INCREMENT_SYSTEMS.items() if abs(v - du) <= 1e-12]
+    return f"{names[0]} with CMR 1" if names else "a length"
+
+
+def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead,
+          straightness_note=None) -> dict[str, str]:
     if exx_includes_lead is None:
         raise ValueError(f"fanuc (pitch error compensation of X): {lead_line(None)}")
     step = equidistant_step(x_mm, "fanuc")
@@ -60,7 +67,10 @@ def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[s
                         exx_includes_lead)
     head += [f"EXPERIMENTAL: {EXPERIMENTAL}",
              f"REFERENCE POINT X = {x_ref:.4f} MM (the reference position of the axis)",
-             f"detection unit {du:g} mm; straightness (EYX, EZX) not written",
+             f"detection unit {du:g} mm ({_unit_name(du)}; CLI --fanuc-detection-unit, "
+             "[export] fanuc_detection_unit): it must be the axis' detection unit (least "
+             "command increment / CMR), else every value is off by their ratio",
+             "straightness (EYX, EZX) not written",
              "parameters of the X axis (enter on the parameter screen, then power off/on):",
              f"3620 = {n_ref}   (compensation point of the reference position)",
              f"3621 = {numbers[0]}   (farthest point, - side)",

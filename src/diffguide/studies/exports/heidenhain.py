@@ -24,7 +24,16 @@ angular errors need the KinematicsComp option, whose ``.COM`` layout was not con
 
 import numpy as np
 
-from ._common import CROSS_AXES, NOTE_TEXT, header_lines, lead_line, sides, sign
+from ._common import (
+    CROSS_AXES,
+    NOTE_TEXT,
+    header_lines,
+    lead_line,
+    sides,
+    sign,
+    value_sign,
+    values_line,
+)
 
 EXPERIMENTAL = ("the table frame BEGIN/[END] of .COM and .CMA is assumed from the TNC's other "
                 "tables, not confirmed")
@@ -36,8 +45,10 @@ def _table(name, cols, rows, widths) -> str:
     return "\n".join(lines + ["[END]"]) + "\n"
 
 
-def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[str, str]:
+def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead,
+          straightness_note=None) -> dict[str, str]:
     known = sides(spec.axis_side)
+    factor = value_sign(spec.heidenhain_values)  # C, or -C where the value is the error
     cols = {}  # compensated axis -> compensation (m)
     if exx_includes_lead is not None:
         cols["X"] = -err[:, 0]  # X carries the workpiece: C = -EXX
@@ -50,15 +61,18 @@ def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[s
             "not given (axis_side, CLI --axis-side) for EYX/EZX")
     name = spec.table_name.upper()
     names = ["NR", "AXISPOS", *cols]  # the axis keys of CfgAxes/axisList (assumed X, Y, Z)
-    rows = [[f"{i}", f"{x + x0_mm:+.4f}"] + [f"{c[i] * 1e3:+.7f}" for c in cols.values()]
+    rows = [[f"{i}", f"{x + x0_mm:+.4f}"]
+            + [f"{factor * c[i] * 1e3:+.7f}" for c in cols.values()]
             for i, x in enumerate(np.asarray(x_mm))]
     com = _table(f"BEGIN {name}.COM MM", names, rows, [6, 14] + [14] * len(cols))
     cma = _table("BEGIN CONFIG.CMA", ["NR", "X", "ACTIVE"], [["0", f"{name}.COM", "*"]],
                  [6, 16, 8])
-    head = header_lines(point, source, x0_mm, "values: compensation values in mm: X = -EXX "
-                        "(X carries the workpiece); Y, Z = sign x EYX, EZX by their side",
-                        exx_includes_lead)
-    head += [f"EXPERIMENTAL: {EXPERIMENTAL}",
+    head = header_lines(point, source, x0_mm, "values in mm: the compensation C of X = -EXX "
+                        "(X carries the workpiece); of Y, Z = sign x EYX, EZX by their side",
+                        exx_includes_lead,
+                        straightness_note if set(cols) & {"Y", "Z"} else None)
+    head += [values_line(spec.heidenhain_values, "HEIDENHAIN", "heidenhain_values"),
+             f"EXPERIMENTAL: {EXPERIMENTAL}",
              f"sides: {', '.join(f'{a} {s}' for a, s in known.items()) or 'Y, Z not given'}; "
              "EYX/EZX of an axis whose side is not given are not written",
              "angles EAX, EBX, ECX are not written: nonlinear axis error compensation moves "

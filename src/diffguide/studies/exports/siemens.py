@@ -43,14 +43,18 @@ def activation_block(tables, names, n) -> list[str]:
     return CEC_COMMENT.lines(out)
 
 
-def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead) -> dict[str, str]:
+def write(x_mm, err, *, x0_mm, point, source, spec, exx_includes_lead,
+          straightness_note=None) -> dict[str, str]:
     step = equidistant_step(x_mm, "siemens-cec")
     tables = cross_tables(err, spec.axis_side, "siemens-cec")
     names = spec.axis_names
     head = header_lines(point, source, x0_mm, "values: compensation values of the "
                         "compensation axis, mm (sign from the side of that axis)",
-                        exx_includes_lead)
-    head[-1] = "EXX (pitch) is not in this program: it belongs to the LEC tables ($AA_ENC_COMP)"
+                        exx_includes_lead, straightness_note)
+    head[3] = "EXX (pitch) is not in this program: it belongs to the LEC tables ($AA_ENC_COMP)"
+    head.append("machine axis names (MD10000 $MN_AXCONF_MACHAX_NAME_TAB of your machine; CLI "
+                "--cec-axis-names, [export] cec_axis_names): "
+                + ", ".join(f"{a}={names[a]}" for a in ("X", "Y", "Z")))
     out = ["%_N_NC_CEC_INI", "CHANDATA(1)"] + CEC_COMMENT.lines(head)
     out += activation_block(tables, names, len(x_mm))
     for t, (name, axis, side, comp) in enumerate(tables):
