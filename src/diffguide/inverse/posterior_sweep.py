@@ -95,9 +95,12 @@ def _interface_traced(c, dq_p, machine, positions, x_ref, basis, sigma_p):
 
 #: ``Δu`` ``(n_pos, m)`` and convergence; with an export folder set (the command line sets
 #: one, :mod:`diffguide._core.aot`) a later process reads the traced program back instead of
-#: tracing it again.
+#: tracing it again. A prediction runs it once per process, so the stored program is
+#: compiled at XLA's optimisation level 0: the compilation dominates a first
+#: ``diffguide predict``, the sweep's run time stays in the milliseconds.
 _interface_jit = cached_program(eqx.filter_jit(_interface_traced),
-                                "inverse.posterior_sweep._interface")
+                                "inverse.posterior_sweep._interface",
+                                compiler_options={"xla_backend_optimization_level": 0})
 
 
 def with_jacobian(traced):
@@ -120,7 +123,8 @@ def with_jacobian(traced):
 #: ``Δu`` ``(n_pos, m)``, its Jacobian ``(n_pos, m, 4n + 1)`` and convergence (stored as
 #: :data:`_interface_jit` is).
 _interface_and_jacobian = cached_program(with_jacobian(_interface_traced),
-                                         "inverse.posterior_sweep._interface_and_jacobian")
+                                         "inverse.posterior_sweep._interface_and_jacobian",
+                                         compiler_options={"xla_backend_optimization_level": 0})
 
 
 def abbe_matrix(z: float) -> np.ndarray:
