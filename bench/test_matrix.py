@@ -9,8 +9,9 @@ TEST-COUNTS markers) and the stacks the whole suite was run on (between its TEST
 The counts come from ``pytest --collect-only -q`` (run by ``--python``, default this
 interpreter, in the repository root): one line ``tests/test_x.py::test_y[...]`` per test of the
 default suite (the ``slow`` ones are deselected by ``pyproject.toml``'s ``addopts`` and counted
-from pytest's summary line). They hold no date or version, so that ``tests/test_docs.py`` can
-require the committed page to match the collection (it counts by its own parsing).
+from pytest's summary line). They hold no date or version, so that
+``tests/test_test_matrix.py`` can require the committed page to match the collection (it
+counts by its own parsing).
 
 A row of the matrix is one stack (Python, jax, jaxlib, equinox, numpy of ``--python``) and the
 summary line of a whole-suite run on it (``--log``: pytest's output, e.g. ``.ci/run``'s or
@@ -22,6 +23,7 @@ import argparse
 import collections
 import datetime
 import json
+import os
 import re
 import subprocess
 import sys
@@ -53,6 +55,7 @@ def collect(python: str = sys.executable) -> tuple[dict[str, int], int]:
         [python, "-m", "pytest", "--collect-only", "-q", "-p", "no:xdist", "-p",
          "no:cacheprovider"],
         capture_output=True, text=True, cwd=ROOT,
+        env={k: v for k, v in os.environ.items() if k != "PYTEST_ADDOPTS"},  # e.g. -n, --lf
     )
     counts: dict[str, int] = collections.Counter()
     deselected = None
