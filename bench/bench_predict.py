@@ -15,12 +15,15 @@ data/majda2012_measurements.csv``, made here unless ``--fit DIR`` names one):
 
 Each figure is the median of ``--repeat`` runs after one warm-up. Targets: (2) <= 50 ms,
 (4) <= 2 s. The load average is printed before and after: the figures mean something only on
-an idle machine. Run:
+an idle machine. ``--json FILE`` writes the times of (2) and (4) (s) for
+``bench/make_table.py``; ``--skip-former`` leaves out (5). The command line's figure, a warm
+``diffguide predict`` in a fresh process, is ``bench/bench_cli.py``'s. Run:
 
-    python bench/bench_predict.py [--fit DIR] [--repeat 5]
+    python bench/bench_predict.py [--fit DIR] [--repeat 5] [--json FILE] [--skip-former]
 """
 
 import argparse
+import json
 import os
 import platform
 import statistics
@@ -48,13 +51,20 @@ def _load() -> str:
     return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
 
-def _median(fn, repeat: int) -> str:
+def _times(fn, repeat: int) -> list[float]:
     fn(0)  # warm-up
     times = []
     for k in range(1, repeat + 1):
         t = time.perf_counter()
         fn(k)
         times.append(time.perf_counter() - t)
+    return times
+
+
+def _median(fn, repeat: int, keep: list | None = None) -> str:
+    times = _times(fn, repeat)
+    if keep is not None:
+        keep.extend(times)
     return (f"median {statistics.median(times) * 1e3:.1f} ms (min {min(times) * 1e3:.1f}, "
             f"max {max(times) * 1e3:.1f}, n={len(times)})")
 
@@ -63,7 +73,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fit", help="a 'diffguide fit --out' folder (default: fitted here)")
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--json", help="write the times (s) of (2) and (4) to this file")
+    ap.add_argument("--skip-former", action="store_true", help="leave out (5)")
     args = ap.parse_args()
+    kept = {"first": [], "points": [], "grid": []}
     print(f"jax {jax.__version__} on {platform.processor() or platform.machine()}, "
           f"{os.cpu_count()} cores, float64; load average {_load()}")
     with tempfile.TemporaryDirectory() as tmp:
@@ -87,26 +100,34 @@ def main() -> None:
 
     t = time.perf_counter()
     predict(post, spec, points(100), x, measured_points=mp)
-    print(f"1. first prediction (3 condensations, compiles, sweep): "
-          f"{time.perf_counter() - t:.2f} s")
+    kept["first"].append(time.perf_counter() - t)
+    print(f"1. first prediction (3 condensations, compiles, sweep): {kept['first'][0]:.2f} s")
     print("2. 2 points x 71 positions, sweep kept:          ",
-          _median(lambda k: predict(post, spec, points(k), x, measured_points=mp), args.repeat))
+          _median(lambda k: predict(post, spec, points(k), x, measured_points=mp), args.repeat,
+                  kept["points"]))
     print("3. 2 points x 71 new positions (sweep again):    ",
           _median(lambda k: predict(post, spec, points(k), shifted(k + 10), measured_points=mp),
                   args.repeat))
     print("4. error map 21 x 11 x 71 positions with σ:      ",
           _median(lambda k: error_map(post, spec, (21, 11), x, measured_points=mp),
-                  args.repeat))
+                  args.repeat, kept["grid"]))
     print("   the same at 71 new positions (sweep again):   ",
           _median(lambda k: error_map(post, spec, (21, 11), shifted(k + 20),
                                       measured_points=mp), args.repeat))
+    if args.json:
+        Path(args.json).write_text(json.dumps(kept), encoding="utf-8")
+    if not args.skip_former:
+        _former(post, spec, points, x, mp, args.repeat)
+    print(f"load average after: {_load()}")
+
+
+def _former(post, spec, points, x, mp, repeat) -> None:
     print("5. former route, its machines kept (same points):",
           _median(lambda k: _predict_recondensed(post, spec, points(0), x, measured_points=mp),
-                  min(args.repeat, 3)))
+                  min(repeat, 3)))
     t = time.perf_counter()
     _predict_recondensed(post, spec, points(200), x, measured_points=mp)
     print(f"   former route, new points (condensed again):    {time.perf_counter() - t:.2f} s")
-    print(f"load average after: {_load()}")
 
 
 if __name__ == "__main__":

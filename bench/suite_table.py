@@ -43,6 +43,23 @@ def per_module(log: str) -> tuple[dict[str, float], str]:
     return dict(seconds), summary
 
 
+#: a battery test's line: ``12.3s call  tests/test_battery.py::test_case_returns_a_fit[baseline]``
+_BATTERY = re.compile(r"^\s*([0-9.]+)s\s+(?:setup|call|teardown)\s+tests/test_battery\.py::"
+                      r"\w+\[(\w+)\]")
+
+
+def per_battery_case(log: str) -> dict[str, float]:
+    """``{case: seconds}`` from a ``--durations=0`` log: every ``tests/test_battery.py`` test of
+    a case (parametrised by its name), setup, call and teardown summed (the case's simulation
+    and fit, made by the first of its tests, and its prediction and checks)."""
+    seconds: dict[str, float] = collections.defaultdict(float)
+    for line in log.splitlines():
+        m = _BATTERY.match(line)
+        if m:
+            seconds[m.group(2)] += float(m.group(1))
+    return dict(seconds)
+
+
 def render(seconds: dict[str, float], summary: str, source: str) -> str:
     from make_table import cpu_model
 

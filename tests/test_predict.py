@@ -19,8 +19,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from diffguide._core.caches import Caches
 from diffguide.cli import main
 from diffguide.guideway.rails import AbstractRailProfile, SplineRail
+from diffguide.inverse import posterior_sweep
 from diffguide.inverse.error_map import check_grid, error_map
 from diffguide.inverse.predict import FitPosterior, _predict_recondensed, predict
 from diffguide.io.config import default_config, load_config, spec_from_config
@@ -322,6 +324,29 @@ def test_command_line_end_to_end(fitted, prediction, tmp_path, capsys):
     assert main(["predict", "--fit", str(out), "--point", "Q:0,0", "--z-mm", "5000", "--out",
                  str(tmp_path / "w.csv")]) == 2
     assert "--z-mm must be in [-500, 2000] mm" in capsys.readouterr().err
+
+
+def test_the_stored_sweep_programs_predict_the_same(fitted, prediction, tmp_path, monkeypatch):
+    """With an export folder (the command line's cache), the sweep's programs are stored
+    (traced once) and a later process reads them back instead of tracing: both give the
+    prediction of the traced functions themselves."""
+    _, post, meta, spec = fitted
+    progs = (posterior_sweep._interface_jit, posterior_sweep._interface_and_jacobian)
+
+    def fresh():  # as in a new process: no sweep, no program in memory
+        monkeypatch.setattr(posterior_sweep, "_SWEEPS", {})
+        for prog in progs:
+            monkeypatch.setattr(prog, "_programs", {})
+        return predict(post, spec, Q, X, measured_points=meta["points_m"])
+
+    with Caches(exports=tmp_path / "exports") as caches:
+        stored = fresh()
+        assert caches.export_stats["exports"] == 2 and caches.export_stats["hits"] == 0
+        loaded = fresh()
+        assert caches.export_stats["exports"] == 2 and caches.export_stats["hits"] == 2
+    for a, b in ((stored, loaded), (loaded, prediction)):
+        np.testing.assert_allclose(a.errors, b.errors, rtol=1e-12, atol=1e-18)
+        np.testing.assert_allclose(a.sigma, b.sigma, rtol=1e-12, atol=1e-18)
 
 
 def test_from_fit_refuses_a_fit_without_posterior():

@@ -28,6 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.aot import cached_program
 from ..fe.recovery import point_rows
 from ..guideway.rails import bspline_matrix
 from ..machine.build import build_machine, table_from_spec, with_overrides
@@ -92,7 +93,14 @@ def _interface_traced(c, dq_p, machine, positions, x_ref, basis, sigma_p):
     return je.interface - je.interface_ref, jnp.all(je.converged)
 
 
-_interface_jit = eqx.filter_jit(_interface_traced)
+#: ``Δu`` ``(n_pos, m)`` and convergence; with an export folder set (the command line sets
+#: one, :mod:`diffguide._core.aot`) a later process reads the traced program back instead of
+#: tracing it again. A prediction runs it once per process, so the stored program is
+#: compiled at XLA's optimisation level 0: the compilation dominates a first
+#: ``diffguide predict``, the sweep's run time stays in the milliseconds.
+_interface_jit = cached_program(eqx.filter_jit(_interface_traced),
+                                "inverse.posterior_sweep._interface",
+                                compiler_options={"xla_backend_optimization_level": 0})
 
 
 def with_jacobian(traced):
@@ -112,8 +120,11 @@ def with_jacobian(traced):
     return value_and_jacobian
 
 
-#: ``Δu`` ``(n_pos, m)``, its Jacobian ``(n_pos, m, 4n + 1)`` and convergence.
-_interface_and_jacobian = with_jacobian(_interface_traced)
+#: ``Δu`` ``(n_pos, m)``, its Jacobian ``(n_pos, m, 4n + 1)`` and convergence (stored as
+#: :data:`_interface_jit` is).
+_interface_and_jacobian = cached_program(with_jacobian(_interface_traced),
+                                         "inverse.posterior_sweep._interface_and_jacobian",
+                                         compiler_options={"xla_backend_optimization_level": 0})
 
 
 def abbe_matrix(z: float) -> np.ndarray:
