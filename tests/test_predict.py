@@ -508,6 +508,22 @@ def test_the_fits_machine_fingerprint(fitted):
     snap = machine_snapshot(default_config())
     assert meta["machine"]["fingerprint"] == content_fingerprint(snap)
     assert "fit" not in snap and "points" not in snap  # not the machine predict builds
+    assert "export" not in snap  # controller settings: how a table is written
+
+
+def test_export_settings_are_not_a_machine_change(tmp_path):
+    # a fit made before the machine file gained (or changed) its [export] table is the same
+    # machine: predict must not refuse it
+    from diffguide.io.fit_posterior import machine_changes
+
+    before = machine_snapshot(default_config())
+    before.pop("export", None)  # a fit of 0.2 or earlier: no such section at all
+    meta = {"machine": {"fingerprint": content_fingerprint(before), "snapshot": before}}
+    toml = tmp_path / "machine.toml"
+    toml.write_text('[export]\ncec_axis_names = {X = "X1", Y = "Y1", Z = "Z1"}\n',
+                    encoding="utf-8")
+    assert machine_changes(meta, default_config()) == []
+    assert machine_changes(meta, load_config(toml)) == []
 
 
 def test_predict_refuses_a_machine_changed_since_the_fit(fitted, tmp_path, capsys):

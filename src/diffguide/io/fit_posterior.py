@@ -41,8 +41,9 @@ FORMAT = "diffguide fit posterior 2"
 FORMAT_1 = "diffguide fit posterior 1"
 NAME = "posterior.json"
 #: Sections of a machine configuration that do not define the machine ``predict`` builds: the
-#: fit's own settings and the instruments' points (``predict`` takes those from the file).
-NOT_MACHINE = ("fit", "points")
+#: fit's own settings, the instruments' points (``predict`` takes those from the file) and the
+#: controller settings of the compensation exports (how a table is written, not the machine).
+NOT_MACHINE = ("fit", "points", "export")
 #: Keys of an imported table's description file that name the files it reads.
 _TABLE_FILES = ("matrix", "nodes", "held_loads")
 
