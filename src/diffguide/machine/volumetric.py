@@ -1,0 +1,172 @@
+r"""Volumetric errors of the cross table: the table relative to the bed at any ``(X, Y)``.
+
+Homogeneous transformations (ISO 230-1's small-angle form). A small motion ``ε = (δ, θ)`` of a
+frame (translation m, rotation rad) is
+
+.. math::
+
+    E(ε) = \begin{bmatrix} 1 & −θ_z & θ_y & δ_x\\ θ_z & 1 & −θ_x & δ_y\\
+           −θ_y & θ_x & 1 & δ_z\\ 0&0&0&1 \end{bmatrix}
+         = \begin{bmatrix} I + [θ]_× & δ\\ 0 & 1\end{bmatrix},
+
+and the frame of control point P on the table top, in the bed frame, is the chain
+
+.. math::
+
+    T_P(X, Y) = \underbrace{\mathrm{Tr}(o_S(Y))\,E(ε_S)}_{T_Y(Y)}\;
+                \underbrace{\mathrm{Tr}(r_T(X) + P)\,E(m_P)}_{T_X(X)},
+
+``o_S = (0, Y, −dz)`` the saddle centre, ``ε_S`` its motion (:class:`CrossState.saddle`),
+``r_T = (X, 0, dz)`` the table centre from the saddle centre, ``P = (x_P, y_P, t/2)`` the
+point on the table top and ``m_P`` its motion relative to the saddle (the one-axis model's,
+elastic deformation included: :func:`~diffguide.machine.equilibrium.point_motion`). The nominal
+frame is the pure translation ``T₀_P = Tr(o_S + r_T + P)``. For a rigid table ``m_P`` is the
+table's rigid motion carried to P, and ``T_P = T_Y(Y) · T_X(X) · Tr(P)`` with the table's pose
+``T_X = Tr(r_T) E(ε_T)``: the chain of the two axes (SPEC: ``T = T_Y · T_X``).
+
+Outputs, both relative to the reference position ``(X_ref, Y_ref)`` (where an instrument is
+zeroed), as the one-axis joint errors are:
+
+- the six errors of the table at P relative to the bed: ``e_P = ε(T₀_P⁻¹ T_P)`` minus the same
+  at the reference, with ``ε(D) = (D_{:3,3}, vee(½(D_{:3,:3} − D_{:3,:3}ᵀ)))`` (EX, EY, EZ in
+  m; EA, EB, EC in rad, about +X, +Y, +Z);
+- the volumetric error of the workpiece point at height ``z`` above P:
+  ``v = T_P·p − T₀_P·p`` with ``p = (0, 0, z, 1)`` in P's frame, minus the same at the reference.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from .._core.result import RESULTS
+from .._core.rigid import skew
+from .._core.types import Array, Float
+from .cross import CrossMachine
+from .cross_equilibrium import Rails, cross_equilibrium_traced
+from .equilibrium import point_motion
+
+#: Names of the six errors of the table relative to the bed (machine axes X, Y, Z; rotations
+#: A, B, C about them), the order of the last axis of :attr:`CrossErrors.errors`.
+TABLE_ERROR_NAMES = ("EX", "EY", "EZ", "EA", "EB", "EC")
+
+
+def small_motion_htm(motion: Float[Array, "... 6"]) -> Float[Array, "... 4 4"]:
+    """``E(ε)``: the 4 × 4 homogeneous transformation of a small motion ``(δ, θ)`` (m, rad),
+    ISO 230-1's small-angle form (module docstring)."""
+    top = jnp.concatenate(
+        [jnp.eye(3) + skew(motion[..., 3:]), motion[..., :3, None]], axis=-1
+    )
+    bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0]), top.shape[:-2] + (1, 4))
+    return jnp.concatenate([top, bottom], axis=-2)
+
+
+def translation_htm(t: Float[Array, "... 3"]) -> Float[Array, "... 4 4"]:
+    """``Tr(t)``: the pure translation by ``t`` (m)."""
+    return small_motion_htm(jnp.concatenate([t, jnp.zeros_like(t)], axis=-1))
+
+
+def htm_errors(D: Float[Array, "... 4 4"]) -> Float[Array, "... 6"]:
+    """``ε(D)``: translation and small rotation ``vee(½(A − Aᵀ))`` of a near-identity
+    transformation ``D`` (m, rad)."""
+    A = D[..., :3, :3]
+    rot = 0.5 * jnp.stack(
+        [A[..., 2, 1] - A[..., 1, 2], A[..., 0, 2] - A[..., 2, 0], A[..., 1, 0] - A[..., 0, 1]],
+        axis=-1,
+    )
+    return jnp.concatenate([D[..., :3, 3], rot], axis=-1)
+
+
+class CrossErrors(eqx.Module):
+    """The table relative to the bed at its control points over a grid of ``(X, Y)``.
+
+    Attributes:
+        X, Y: table and saddle positions (m). X_ref, Y_ref: the reference position (m).
+        point_names: the table's control points. points: their positions on the table top in
+            the table frame, ``(p, 3)`` (m).
+        poses: ``T_P(X, Y)``, ``(n_x, n_y, p, 4, 4)`` (module docstring; m).
+        nominal: ``T₀_P(X, Y)``, the same shape. poses_ref, nominal_ref: the same at the
+            reference, ``(p, 4, 4)``.
+        errors: six errors of the table relative to the bed at each point, relative to the
+            reference, ``(n_x, n_y, p, 6)``, :data:`TABLE_ERROR_NAMES` (m, rad).
+        result: result code per ``(X, Y)`` (a failed reference is reported everywhere).
+    """
+
+    X: Float[Array, " n_x"]
+    Y: Float[Array, " n_y"]
+    X_ref: Float[Array, ""]
+    Y_ref: Float[Array, ""]
+    point_names: tuple[str, ...] = eqx.field(static=True)
+    points: Float[Array, "p 3"]
+    poses: Float[Array, "n_x n_y p 4 4"]
+    nominal: Float[Array, "n_x n_y p 4 4"]
+    poses_ref: Float[Array, "p 4 4"]
+    nominal_ref: Float[Array, "p 4 4"]
+    errors: Float[Array, "n_x n_y p 6"]
+    result: RESULTS
+
+    @property
+    def converged(self) -> jax.Array:
+        return self.result == RESULTS.successful
+
+    def volumetric(self, z: float | Float[Array, ""] = 0.0) -> Float[Array, "n_x n_y p 3"]:
+        """Position error of the workpiece point at height ``z`` (m) above each control point,
+        relative to the reference: ``(T_P − T₀_P)·p`` minus the same at the reference (m)."""
+        p = jnp.stack([0.0, 0.0, jnp.asarray(z, dtype=float), 1.0])
+        v = (self.poses - self.nominal) @ p
+        return (v - (self.poses_ref - self.nominal_ref) @ p)[..., :3]
+
+
+def _frames(cross: CrossMachine, table_u, saddle, X, Y, points):
+    """``(T_P, T₀_P, T₀_P⁻¹ T_P)`` for table interface DOF ``table_u`` ``(n_x, m)``, saddle motions
+    ``(n_x, n_y, 6)`` and the points ``(p, 3)``: ``(n_x, n_y, p, 4, 4)`` each."""
+    m = point_motion(cross.x_axis, table_u)  # (n_x, p, 6), relative to the saddle
+    zeros_x, zeros_y = jnp.zeros_like(X), jnp.zeros_like(Y)
+    o_s = jnp.stack([zeros_y, Y, zeros_y - cross.dz], axis=-1)  # (n_y, 3)
+    r_t = jnp.stack([X, zeros_x, zeros_x + cross.dz], axis=-1)  # (n_x, 3)
+    T_y = translation_htm(o_s)[None] @ small_motion_htm(saddle)  # (n_x, n_y, 4, 4)
+    T_x = translation_htm(r_t[:, None] + points) @ small_motion_htm(m)  # (n_x, p, 4, 4)
+    poses = T_y[:, :, None] @ T_x[:, None]
+    n = o_s[None, :, None] + r_t[:, None, None] + points
+    return poses, translation_htm(n), translation_htm(-n) @ poses
+
+
+def cross_errors_traced(
+    cross: CrossMachine,
+    rails_x: Rails,
+    rails_y: Rails,
+    X: Float[Array, " n_x"],
+    Y: Float[Array, " n_y"],
+    X_ref: float | Float[Array, ""] = 0.0,
+    Y_ref: float | Float[Array, ""] = 0.0,
+) -> CrossErrors:
+    """The table's errors relative to the bed at its control points over the grid ``X × Y``
+    (m), relative to ``(X_ref, Y_ref)`` (m): one equilibrium over the grid and the reference
+    (:func:`~diffguide.machine.cross_equilibrium.cross_equilibrium_traced`), then the chain of
+    the module docstring. Rails as there."""
+    X = jnp.atleast_1d(jnp.asarray(X, dtype=float))
+    Y = jnp.atleast_1d(jnp.asarray(Y, dtype=float))
+    X_ref = jnp.asarray(X_ref, dtype=float)
+    Y_ref = jnp.asarray(Y_ref, dtype=float)
+    Xa, Ya = jnp.concatenate([X, X_ref[None]]), jnp.concatenate([Y, Y_ref[None]])
+    state = cross_equilibrium_traced(cross, rails_x, rails_y, Xa, Ya)
+    xy = jnp.asarray(cross.x_axis.points_xy)
+    points = jnp.concatenate([xy, jnp.full((xy.shape[0], 1), 1.0) * cross.table_top], axis=1)
+    poses, nominal, local = _frames(cross, state.table.interface, state.saddle, Xa, Ya, points)
+    six = htm_errors(local)
+    ok_ref = (state.result == RESULTS.successful)[-1, -1]
+    result = jax.tree_util.tree_map(
+        lambda v: jnp.where(ok_ref, v[:-1, :-1], v[-1, -1]), state.result
+    )
+    return CrossErrors(
+        X=X, Y=Y, X_ref=X_ref, Y_ref=Y_ref,
+        point_names=cross.x_axis.point_names,
+        points=points,
+        poses=poses[:-1, :-1], nominal=nominal[:-1, :-1],
+        poses_ref=poses[-1, -1], nominal_ref=nominal[-1, -1],
+        errors=six[:-1, :-1] - six[-1, -1],
+        result=result,
+    )
+
+
+#: :func:`cross_errors_traced`, compiled (the function to call).
+cross_errors = eqx.filter_jit(cross_errors_traced)
