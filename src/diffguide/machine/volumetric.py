@@ -30,8 +30,8 @@ zeroed), as the one-axis joint errors are:
 - the six errors of the table at P relative to the bed: ``e_P = ε(T₀_P⁻¹ T_P)`` minus the same
   at the reference, with ``ε(D) = (D_{:3,3}, vee(½(D_{:3,:3} − D_{:3,:3}ᵀ)))`` (EX, EY, EZ in
   m; EA, EB, EC in rad, about +X, +Y, +Z);
-- the volumetric error of the workpiece point at height ``z`` above P:
-  ``v = T_P·p − T₀_P·p`` with ``p = (0, 0, z, 1)`` in P's frame, minus the same at the reference.
+- the volumetric error of the workpiece point at height ``z`` above P: ``v = T_P·p − T₀_P·p``
+  with ``p = (0, 0, z, 1)`` in P's frame, minus the same at the reference.
 """
 
 import equinox as eqx
@@ -117,8 +117,8 @@ class CrossErrors(eqx.Module):
 
 
 def _frames(cross: CrossMachine, table_u, saddle, X, Y, points):
-    """``(T_P, T₀_P, T₀_P⁻¹ T_P)`` for table interface DOF ``table_u`` ``(n_x, m)``, saddle motions
-    ``(n_x, n_y, 6)`` and the points ``(p, 3)``: ``(n_x, n_y, p, 4, 4)`` each."""
+    """``(T_P, T₀_P, T₀_P⁻¹ T_P)``, ``(n_x, n_y, p, 4, 4)`` each, for the table's interface DOF
+    ``table_u`` ``(n_x, m)``, the saddle's motions ``(n_x, n_y, 6)`` and the points ``(p, 3)``."""
     m = point_motion(cross.x_axis, table_u)  # (n_x, p, 6), relative to the saddle
     zeros_x, zeros_y = jnp.zeros_like(X), jnp.zeros_like(Y)
     o_s = jnp.stack([zeros_y, Y, zeros_y - cross.dz], axis=-1)  # (n_y, 3)

@@ -1,0 +1,196 @@
+"""The stacked cross table (``machine.cross``, ``cross_equilibrium``, ``volumetric``).
+
+Checked against results obtained another way: the rigid limit against the two axes solved
+separately as one-axis machines (the saddle loaded by the table's weight, computed here from
+the plate's size and density) and composed by a homogeneous-transformation chain written here
+(ISO 230-1 small-angle form); derivatives against central differences; zero loads and
+straight rails against zero; the Y dependence of the X axis's errors against the saddle's tilt.
+"""
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import numpy as np
+import pytest
+
+from diffguide.guideway.rails import PaperPolynomialRail
+from diffguide.machine.cross import build_cross
+from diffguide.machine.cross_spec import CrossSpec
+from diffguide.machine.equilibrium import equilibrium, rigid_body_map
+from diffguide.machine.paper_cross import majda2012_cross_spec
+from diffguide.machine.volumetric import cross_errors, cross_errors_traced
+
+X = np.array([-0.3, 0.1, 0.35])
+Y = np.array([-0.2, 0.15])
+
+
+def _rails(a, b):
+    """Rail 1 bent vertically by Δ = ``a``, rail 2 horizontally by ``b`` (m; Majda's eq. 4);
+    array amplitudes, so that all the tests' rails share one compiled program."""
+    return (PaperPolynomialRail(np.asarray(a), "vertical"),
+            PaperPolynomialRail(np.asarray(b), "horizontal"))
+
+
+RAILS_X = _rails(0.05e-3, 0.03e-3)
+RAILS_Y = _rails(0.04e-3, 0.02e-3)
+STRAIGHT = _rails(0.0, 0.0)
+
+
+def _coarse(spec: CrossSpec) -> CrossSpec:
+    """``spec`` on small meshes (the tests' cost; the footprint lines still refine them)."""
+    x = dataclasses.replace(spec.x, table=dataclasses.replace(spec.x.table, nx=4, ny=2))
+    y = dataclasses.replace(spec.y, table=dataclasses.replace(spec.y.table, nx=2, ny=2))
+    return dataclasses.replace(spec, x=x, y=y)
+
+
+@pytest.fixture(scope="module")
+def spec():
+    return _coarse(majda2012_cross_spec())
+
+
+@pytest.fixture(scope="module")
+def elastic(spec):
+    return build_cross(spec)
+
+
+@pytest.fixture(scope="module")
+def rigid(elastic):
+    return elastic.with_rigid_table()
+
+
+# ---- an independent chain: ISO 230-1 small-angle HTMs, written out ----
+
+
+def _htm(t, e):
+    """Nominal translation ``t`` followed by the small errors ``e = (δx, δy, δz, a, b, c)``."""
+    dx, dy, dz, a, b, c = e
+    return np.array([[1.0, -c, b, t[0] + dx], [c, 1.0, -a, t[1] + dy],
+                     [-b, a, 1.0, t[2] + dz], [0.0, 0.0, 0.0, 1.0]])
+
+
+def _rigid_motion(machine, u):
+    """The rigid motion at the body's origin from its interface DOF ``u = Φ q`` (first patch)."""
+    r0 = np.asarray(machine.table.ref_points[0])
+    theta = u[3:6]
+    return np.concatenate([u[:3] - np.cross(theta, r0), theta])
+
+
+def _axes_separately(spec, cross, Xs, Ys):
+    """The two axes as one-axis machines: the table's rigid motion on the saddle at each X, the
+    saddle's (machine frame) at each (X, Y) under the table's weight."""
+    xs = equilibrium(cross.x_axis, RAILS_X, Xs)
+    q_x = np.array([_rigid_motion(cross.x_axis, u) for u in np.asarray(xs.interface)])
+    t = spec.x.table
+    weight = t.material.rho * spec.x.gravity * t.length * t.width * t.thickness
+    saddle = cross.y_axis
+    Phi = np.asarray(rigid_body_map(saddle.table.ref_points))
+    q_y = []
+    for x in Xs:
+        # weight -W e_z at the table centre, (x, 0, dz) from the saddle centre: moment (0, xW, 0)
+        # in the machine frame; in the Y axis frame (x' = Y, y' = -X) force (0, 0, -W), moment
+        # (xW, 0, 0)
+        w_local = np.array([0.0, 0.0, -weight, x * weight, 0.0, 0.0])
+        f = np.asarray(saddle.table.f) + Phi @ np.linalg.solve(Phi.T @ Phi, w_local)
+        ys = equilibrium(eqx.tree_at(lambda m: m.table.f, saddle, f), RAILS_Y, Ys)
+        local = np.array([_rigid_motion(saddle, u) for u in np.asarray(ys.interface)])
+        q_y.append(local[:, [1, 0, 2, 4, 3, 5]] * np.array([-1, 1, 1, -1, 1, 1]))
+    return q_x, np.array(q_y)
+
+
+def test_rigid_limit_is_the_htm_chain_of_the_two_axes(spec, rigid):
+    """Rigid table and saddle: the table's frame at every control point equals
+    ``Tr(saddle) E(ε_Y(Y; X)) · Tr(table) E(ε_X(X)) · Tr(P)`` of the two axes solved apart, and
+    so does the volumetric error of a point 0.2 m above it, to 1e-9 of their size."""
+    e = cross_errors(rigid, RAILS_X, RAILS_Y, X, Y)
+    assert bool(np.all(e.converged))
+    Xs, Ys = np.append(X, 0.0), np.append(Y, 0.0)
+    q_x, q_y = _axes_separately(spec, rigid, Xs, Ys)
+    t = spec.x.table
+    dz = t.thickness / 2 + spec.x_guideway_height + spec.y.table.thickness / 2
+    pts = np.asarray(e.points)
+
+    def chain(i, j, p):
+        T = _htm((0.0, Ys[j], -dz), q_y[i, j]) @ _htm((Xs[i], 0.0, dz), q_x[i])
+        return T @ _htm(p, np.zeros(6))
+
+    z = np.array([0.0, 0.0, 0.2, 1.0])
+    vol = np.asarray(e.volumetric(0.2))
+    scale = np.max(np.abs(vol))
+    assert scale > 1e-6  # micrometres: the test is not vacuous
+    for k, p in enumerate(pts):
+        ref = (chain(-1, -1, p) - _htm(p, np.zeros(6))) @ z  # the reference is (0, 0)
+        for i in range(len(X)):
+            for j in range(len(Y)):
+                T = chain(i, j, p)
+                T0 = _htm((Xs[i] + p[0], Ys[j] + p[1], p[2]), np.zeros(6))
+                np.testing.assert_allclose(np.asarray(e.poses[i, j, k]) - T0, T - T0,
+                                           rtol=0, atol=1e-9 * scale)
+                v = (T - T0) @ z - ref
+                np.testing.assert_allclose(vol[i, j, k], v[:3], rtol=0, atol=1e-9 * scale)
+
+
+def test_no_loads_and_straight_rails_give_no_errors(elastic):
+    """Weightless, on straight rails: the table does not move relative to the bed."""
+    zero = eqx.tree_at(
+        lambda c: (c.x_axis.table.f, c.x_axis.table.r0, c.y_axis.table.f),
+        elastic,
+        replace_fn=lambda v: 0.0 * v,
+    )
+    e = cross_errors(zero, STRAIGHT, STRAIGHT, X, Y)
+    assert bool(np.all(e.converged))
+    np.testing.assert_allclose(np.asarray(e.errors), 0.0, rtol=0, atol=1e-18)
+    np.testing.assert_allclose(np.asarray(e.volumetric(0.3)), 0.0, rtol=0, atol=1e-18)
+
+
+def test_gradient_through_the_stacked_equilibrium(rigid):
+    """``jvp`` of the errors w.r.t. a Y-rail error and the Y blocks' preload force equals
+    central differences."""
+
+    def inputs(p):
+        delta, scale = p
+        cross = eqx.tree_at(lambda c: c.y_axis.carriage.preload_force, rigid,
+                            rigid.y_axis.carriage.preload_force * scale)
+        return cross, (PaperPolynomialRail(delta, "vertical"), RAILS_Y[1])
+
+    def errors(p):
+        cross, rails_y = inputs(p)
+        return cross_errors_traced(cross, RAILS_X, rails_y, X, Y).errors
+
+    def f(p):  # the other tests' compiled program
+        return cross_errors(*inputs(p)[:1], RAILS_X, inputs(p)[1], X, Y).errors
+
+    p0 = np.array([0.04e-3, 1.0])
+    tangents = jax.jit(lambda p: jax.vmap(lambda d: jax.jvp(errors, (p,), (d,))[1])(np.eye(2)))
+    tangents = tangents(p0)
+    for k, h in enumerate((1e-8, 1e-4)):  # the steps' truncation error: ~1e-7 relative
+        direction = np.eye(2)[k]
+        tangent = tangents[k]
+        fd = (f(p0 + h * direction) - f(p0 - h * direction)) / (2 * h)
+        scale = float(np.max(np.abs(fd)))
+        assert scale > 0
+        np.testing.assert_allclose(np.asarray(tangent), np.asarray(fd), rtol=0,
+                                   atol=1e-5 * scale)
+
+
+def test_x_axis_errors_depend_on_y_through_the_y_rails(rigid):
+    """SPEC's consequence: the X axis's errors measured along X on the table (zeroed at
+    X_ref on each line) depend on the line's Y when a Y rail is bent, and not when the Y rails
+    are straight; the change in EZ at the table centre is the saddle's tilt about Y times the
+    travel, ``−Δθ_y · X``, within the saddle's load-dependent compliance."""
+    Xs = np.array([-0.3, 0.0, 0.3])  # includes X_ref = 0
+    c = rigid.x_axis.point_names.index("P5")
+
+    def along_x(rails_y):
+        e = cross_errors(rigid, RAILS_X, rails_y, Xs, Y)
+        line = np.asarray(e.errors[:, :, c])
+        return line - line[1], np.asarray(e.errors[1, :, c])  # along X; the saddle at X_ref
+
+    straight, _ = along_x(STRAIGHT)
+    np.testing.assert_allclose(straight[:, 0], straight[:, 1], rtol=0, atol=1e-12 * np.max(
+        np.abs(straight)))
+    bent, at_ref = along_x(RAILS_Y)
+    dez = bent[:, 1, 2] - bent[:, 0, 2]
+    assert np.max(np.abs(dez)) > 0.1e-6  # a tenth of a micrometre over the stroke
+    tilt = at_ref[1, 4] - at_ref[0, 4]  # EB of the centre = the saddle's tilt (rigid table)
+    np.testing.assert_allclose(dez, -tilt * Xs, rtol=0, atol=0.1 * np.max(np.abs(dez)))
