@@ -50,13 +50,12 @@ def spec():
 
 
 @pytest.fixture(scope="module")
-def elastic(spec):
-    return build_cross(spec)
-
-
-@pytest.fixture(scope="module")
-def rigid(elastic):
-    return elastic.with_rigid_table()
+def rigid(spec):
+    """The rigid table on the rigid saddle, its Y blocks' preload an array (the gradient test
+    scales it: the same program as the other tests)."""
+    cross = build_cross(spec, rigid_table=True)
+    return eqx.tree_at(lambda c: c.y_axis.carriage.preload_force, cross,
+                       np.asarray(cross.y_axis.carriage.preload_force, dtype=float))
 
 
 # ---- an independent chain: ISO 230-1 small-angle HTMs, written out ----
@@ -130,11 +129,11 @@ def test_rigid_limit_is_the_htm_chain_of_the_two_axes(spec, rigid):
                 np.testing.assert_allclose(vol[i, j, k], v[:3], rtol=0, atol=1e-9 * scale)
 
 
-def test_no_loads_and_straight_rails_give_no_errors(elastic):
+def test_no_loads_and_straight_rails_give_no_errors(rigid):
     """Weightless, on straight rails: the table does not move relative to the bed."""
     zero = eqx.tree_at(
-        lambda c: (c.x_axis.table.f, c.x_axis.table.r0, c.y_axis.table.f),
-        elastic,
+        lambda c: (c.x_axis.table.f, c.y_axis.table.f),
+        rigid,
         replace_fn=lambda v: 0.0 * v,
     )
     e = cross_errors(zero, STRAIGHT, STRAIGHT, X, Y)
@@ -194,3 +193,37 @@ def test_x_axis_errors_depend_on_y_through_the_y_rails(rigid):
     assert np.max(np.abs(dez)) > 0.1e-6  # a tenth of a micrometre over the stroke
     tilt = at_ref[1, 4] - at_ref[0, 4]  # EB of the centre = the saddle's tilt (rigid table)
     np.testing.assert_allclose(dez, -tilt * Xs, rtol=0, atol=0.1 * np.max(np.abs(dez)))
+
+
+def test_simulate_writes_the_cross_grid(tmp_path):
+    """``diffguide simulate --preset majda2012-cross``: one row per (X, Y, point) over both
+    strokes, read back by the csv module; zero at the reference position (X, Y) = (0, 0), not
+    elsewhere. (With a cache folder: the command's exported program, compiled fast.)"""
+    import csv
+
+    out = tmp_path / "cross.csv"
+    assert main_simulate(["--grid-xy", "3x3", "--cache-dir", str(tmp_path / "cache"),
+                          "--out", str(out), "-q"]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 3 * 3 * 5 and all(r["converged"] == "1" for r in rows)
+    assert {(float(r["X_mm"]), float(r["Y_mm"])) for r in rows} == {
+        (x, y) for x in (-350.0, 0.0, 350.0) for y in (-230.0, 0.0, 230.0)}
+    names = [f"{n}_{'um' if k < 3 else 'urad'}" for k, n in enumerate("EX EY EZ EA EB EC".split())]
+    values = np.array([[float(r[n]) for n in names] for r in rows])
+    at_ref = np.array([float(r["X_mm"]) == 0 and float(r["Y_mm"]) == 0 for r in rows])
+    assert np.all(values[at_ref] == 0.0)
+    assert np.all(np.max(np.abs(values[~at_ref]), axis=1) > 0.1)  # µm, µrad
+
+
+def test_simulate_cross_refuses_one_axis_options(tmp_path, capsys):
+    out = tmp_path / "cross.csv"
+    assert main_simulate(["--rigid-table", "--out", str(out)]) == 2
+    assert "--rigid-table is not available with --preset majda2012-cross" in (
+        capsys.readouterr().err)
+    assert not out.exists()
+
+
+def main_simulate(extra):
+    from diffguide.cli import main
+
+    return main(["simulate", "--preset", "majda2012-cross", *extra])
