@@ -227,3 +227,13 @@ def main_simulate(extra):
     from diffguide.cli import main
 
     return main(["simulate", "--preset", "majda2012-cross", *extra])
+
+@pytest.mark.parametrize("call, words", [
+    (lambda c: cross_errors(c, RAILS_X, RAILS_Y, np.array([350.0]), Y), "X"),
+    (lambda c: cross_errors(c, RAILS_X[0], RAILS_Y, X, Y), "rails must be a pair"),
+    (lambda c: cross_errors(c, RAILS_X, RAILS_Y, X, np.zeros((2, 2))), "1-D"),
+])
+def test_bad_arguments_are_refused(rigid, call, words):
+    with pytest.raises((ValueError, TypeError)) as info:
+        call(rigid)
+    assert words in str(info.value)

@@ -38,12 +38,14 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .._core.checks import length
 from .._core.result import RESULTS
 from .._core.rigid import skew
 from .._core.types import Array, Float
 from .cross import CrossMachine
 from .cross_equilibrium import Rails, cross_equilibrium_traced
-from .equilibrium import point_motion
+from .equilibrium import _error_if_failed, point_motion
+from .kinematics import POSITION_RANGE, _check_sweep_inputs
 
 #: Names of the six errors of the table relative to the bed (machine axes X, Y, Z; rotations
 #: A, B, C about them), the order of the last axis of :attr:`CrossErrors.errors`.
@@ -138,11 +140,16 @@ def cross_errors_traced(
     Y: Float[Array, " n_y"],
     X_ref: float | Float[Array, ""] = 0.0,
     Y_ref: float | Float[Array, ""] = 0.0,
+    *,
+    throw: bool = False,
 ) -> CrossErrors:
     """The table's errors relative to the bed at its control points over the grid ``X × Y``
     (m), relative to ``(X_ref, Y_ref)`` (m): one equilibrium over the grid and the reference
     (:func:`~diffguide.machine.cross_equilibrium.cross_equilibrium_traced`), then the chain of
-    the module docstring. Rails as there."""
+    the module docstring. Rails as there (each a pair of profiles); ``throw``: raise
+    (``eqx.error_if``) when any position fails, instead of only reporting it in ``result``."""
+    _check_sweep_inputs(rails_x, X, X_ref)
+    _check_sweep_inputs(rails_y, Y, Y_ref)
     X = jnp.atleast_1d(jnp.asarray(X, dtype=float))
     Y = jnp.atleast_1d(jnp.asarray(Y, dtype=float))
     X_ref = jnp.asarray(X_ref, dtype=float)
@@ -157,16 +164,37 @@ def cross_errors_traced(
     result = jax.tree_util.tree_map(
         lambda v: jnp.where(ok_ref, v[:-1, :-1], v[-1, -1]), state.result
     )
+    errors = six[:-1, :-1] - six[-1, -1]
+    if throw:
+        errors = _error_if_failed(errors, result, "cross_errors")
     return CrossErrors(
         X=X, Y=Y, X_ref=X_ref, Y_ref=Y_ref,
         point_names=cross.x_axis.point_names,
         points=points,
         poses=poses[:-1, :-1], nominal=nominal[:-1, :-1],
         poses_ref=poses[-1, -1], nominal_ref=nominal[-1, -1],
-        errors=six[:-1, :-1] - six[-1, -1],
+        errors=errors,
         result=result,
     )
 
 
-#: :func:`cross_errors_traced`, compiled (the function to call).
-cross_errors = eqx.filter_jit(cross_errors_traced)
+_cross_errors_jit = eqx.filter_jit(cross_errors_traced)
+
+
+def cross_errors(
+    cross: CrossMachine,
+    rails_x: Rails,
+    rails_y: Rails,
+    X: Float[Array, " n_x"],
+    Y: Float[Array, " n_y"],
+    X_ref: float | Float[Array, ""] = 0.0,
+    Y_ref: float | Float[Array, ""] = 0.0,
+    *,
+    throw: bool = False,
+) -> CrossErrors:
+    """:func:`cross_errors_traced`, compiled (the function to call), after refusing concrete
+    positions outside :data:`~diffguide.machine.kinematics.POSITION_RANGE` (m). Inside another
+    traced function call ``cross_errors_traced`` itself."""
+    for name, value in (("X", X), ("Y", Y), ("X_ref", X_ref), ("Y_ref", Y_ref)):
+        length(name, value, *POSITION_RANGE)  # traced values pass unchecked
+    return _cross_errors_jit(cross, rails_x, rails_y, X, Y, X_ref, Y_ref, throw=throw)
