@@ -195,16 +195,32 @@ def test_x_axis_errors_depend_on_y_through_the_y_rails(rigid):
     np.testing.assert_allclose(dez, -tilt * Xs, rtol=0, atol=0.1 * np.max(np.abs(dez)))
 
 
-def test_simulate_writes_the_cross_grid(tmp_path):
+@pytest.fixture(scope="module")
+def cli_cache(tmp_path_factory):
+    """One cache folder for the command-line tests (the second reuses the first's program)."""
+    return str(tmp_path_factory.mktemp("cross-cache"))
+
+
+def _rows(path):
+    import csv
+
+    return list(csv.DictReader(open(path)))
+
+
+@pytest.fixture(scope="module")
+def preset_rows(tmp_path_factory, cli_cache):
+    """``simulate --preset majda2012-cross --grid-xy 3x3``'s CSV rows, read by the csv module."""
+    out = tmp_path_factory.mktemp("cross-out") / "cross.csv"
+    assert main_simulate(["--grid-xy", "3x3", "--cache-dir", cli_cache, "--out", str(out),
+                          "-q"]) == 0
+    return _rows(out)
+
+
+def test_simulate_writes_the_cross_grid(preset_rows):
     """``diffguide simulate --preset majda2012-cross``: one row per (X, Y, point) over both
     strokes, read back by the csv module; zero at the reference position (X, Y) = (0, 0), not
     elsewhere. (With a cache folder: the command's exported program, compiled fast.)"""
-    import csv
-
-    out = tmp_path / "cross.csv"
-    assert main_simulate(["--grid-xy", "3x3", "--cache-dir", str(tmp_path / "cache"),
-                          "--out", str(out), "-q"]) == 0
-    rows = list(csv.DictReader(out.open()))
+    rows = preset_rows
     assert len(rows) == 3 * 3 * 5 and all(r["converged"] == "1" for r in rows)
     assert {(float(r["X_mm"]), float(r["Y_mm"])) for r in rows} == {
         (x, y) for x in (-350.0, 0.0, 350.0) for y in (-230.0, 0.0, 230.0)}
@@ -213,6 +229,22 @@ def test_simulate_writes_the_cross_grid(tmp_path):
     at_ref = np.array([float(r["X_mm"]) == 0 and float(r["Y_mm"]) == 0 for r in rows])
     assert np.all(values[at_ref] == 0.0)
     assert np.all(np.max(np.abs(values[~at_ref]), axis=1) > 0.1)  # µm, µrad
+
+
+def test_simulate_reads_a_cross_machine_file(tmp_path, cli_cache, preset_rows):
+    """``simulate --config`` a file with a ``[saddle]``: the cross table of that file (a
+    heavier saddle, a taller X guideway: other errors than the preset's, the same rows)."""
+    from diffguide.cli import main
+
+    machine = tmp_path / "cross.toml"
+    machine.write_text("[saddle]\nthickness_mm = 120\n[cross]\nx_guideway_height_mm = 50\n")
+    out = tmp_path / "file.csv"
+    assert main(["simulate", "--config", str(machine), "--grid-xy", "3x3", "--cache-dir",
+                 cli_cache, "--out", str(out), "-q"]) == 0
+    preset, custom = preset_rows, _rows(out)
+    assert [r["point"] for r in preset] == [r["point"] for r in custom]
+    diff = [abs(float(a["EX_um"]) - float(b["EX_um"])) for a, b in zip(preset, custom)]
+    assert max(diff) > 1e-3  # µm: the taller stack's Abbe offset
 
 
 def test_simulate_cross_refuses_one_axis_options(tmp_path, capsys):

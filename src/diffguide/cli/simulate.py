@@ -6,7 +6,7 @@ import numpy as np
 
 from .._core.limits import MAX_MESH_DIVISIONS, MAX_POSITIONS, check_range
 from ._common import PRESETS, add_machine_arguments, check_tolerances, machine_config
-from .simulate_cross import CROSS_PRESET, run_cross
+from .simulate_cross import CROSS_PRESET, is_cross, run_cross
 
 
 def parse_positions(text: str) -> np.ndarray:
@@ -41,7 +41,8 @@ def add_parser(sub) -> None:
         "--grid-xy",
         default="9x9",
         metavar="NXxNY",
-        help=f"with --preset {CROSS_PRESET} (the table on a saddle): NX table positions X "
+        help=f"with --preset {CROSS_PRESET} or a cross machine file (the table on a saddle): "
+        "NX table positions X "
         "and NY saddle positions Y over both strokes; the CSV has the six errors of the table "
         "relative to the bed (EX..EZ µm, EA..EC µrad) at each point, from X = Y = 0",
     )
@@ -281,7 +282,7 @@ def run(args) -> int:
     from ..io.table_source import config_machine
     from ..machine.majda2012 import paper_variant
 
-    if args.preset == CROSS_PRESET and not args.config:
+    if is_cross(args):
         return run_cross(args)
     cfg = machine_config(args)
     positions = _positions(args, cfg)

@@ -1,5 +1,6 @@
-"""``diffguide simulate --preset majda2012-cross``: the cross table's errors relative to the bed
-at the table's control points over an (X, Y) grid (:mod:`diffguide.machine.volumetric`)."""
+"""``diffguide simulate --preset majda2012-cross`` (or ``--config`` a cross machine file,
+:mod:`diffguide.io.cross_config`): the cross table's errors relative to the bed at the table's
+control points over an (X, Y) grid (:mod:`diffguide.machine.volumetric`)."""
 
 import numpy as np
 
@@ -25,13 +26,25 @@ def parse_grid(text: str) -> tuple[int, int]:
     return nx, ny
 
 
+def is_cross(args) -> bool:
+    """Whether ``simulate`` runs the cross table: ``--preset majda2012-cross``, or a
+    ``--config`` file with a saddle (:func:`~diffguide.io.cross_config.is_cross_config`)."""
+    if args.config:
+        from ..io.cross_config import is_cross_config
+
+        return is_cross_config(args.config)
+    return args.preset == CROSS_PRESET
+
+
 def run_cross(args) -> int:
-    """The cross table over ``--grid-xy`` positions spanning both strokes, the paper's rail
-    error ``--variant`` on the X rails and, the same, on the Y rails; writes ``--out``."""
+    """The cross table (``--config`` file, else the preset) over ``--grid-xy`` positions
+    spanning both strokes, the paper's rail error ``--variant`` on the X rails and, the same,
+    on the Y rails; writes ``--out``."""
     import sys
 
     from .._core.aot import cached_program
     from ..io.atomic import atomic_write_text
+    from ..io.cross_config import load_cross_config
     from ..io.cross_csv import cross_errors_csv
     from ..machine.cross import build_cross
     from ..machine.majda2012 import paper_variant
@@ -44,8 +57,9 @@ def run_cross(args) -> int:
                              "writes the errors at the control points over --grid-xy)")
     nx, ny = parse_grid(args.grid_xy)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
-    say(f"building the {CROSS_PRESET} machine ...")
-    cross = build_cross(majda2012_cross_spec())
+    spec = load_cross_config(args.config) if args.config else majda2012_cross_spec()
+    say(f"building the {args.config or CROSS_PRESET} machine ...")
+    cross = build_cross(spec)
     X = np.linspace(-0.5, 0.5, nx) * cross.x_stroke
     Y = np.linspace(-0.5, 0.5, ny) * cross.y_stroke
     say(f"solving the equilibrium at {nx} x {ny} positions ...")

@@ -123,6 +123,14 @@ def load_cross_config(path: str | os.PathLike) -> CrossSpec:
     return cross_spec_from_raw(_read_toml(path), str(path))
 
 
+def is_cross_config(path: str | os.PathLike) -> bool:
+    """Whether a machine file describes a cross table: it has a ``[saddle]`` or ``[cross]``
+    section, or one of the Y joint's (``[guideway.y]``, ...)."""
+    raw = _read_toml(path)
+    return any(section in raw for section in ("saddle", "cross")) or any(
+        isinstance(body, dict) and isinstance(body.get("y"), dict) for body in raw.values())
+
+
 def cross_config_from_spec(spec: CrossSpec) -> dict:
     """A :class:`~diffguide.machine.cross_spec.CrossSpec` as a cross machine file's table (user
     units; the Y joint's sections nested as TOML reads ``[guideway.y]``)."""

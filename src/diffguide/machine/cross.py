@@ -102,8 +102,8 @@ def build_cross(spec: CrossSpec, *, rigid_table: bool = False) -> CrossMachine:
     return CrossMachine(
         x_axis=x_axis,
         y_axis=y_axis,
-        dz=dz,
-        table_top=spec.x.table.thickness / 2,
+        dz=jnp.asarray(dz, dtype=float),  # arrays: another height is the same program
+        table_top=jnp.asarray(spec.x.table.thickness / 2, dtype=float),
         x_stroke=float(spec.x.stroke),
         y_stroke=float(spec.y.stroke),
     )
