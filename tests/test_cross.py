@@ -173,7 +173,7 @@ def test_gradient_through_the_stacked_equilibrium(rigid):
 
 
 def test_x_axis_errors_depend_on_y_through_the_y_rails(rigid):
-    """SPEC's consequence: the X axis's errors measured along X on the table (zeroed at
+    """A cross table's consequence: the X axis's errors measured along X on the table (zeroed at
     X_ref on each line) depend on the line's Y when a Y rail is bent, and not when the Y rails
     are straight; the change in EZ at the table centre is the saddle's tilt about Y times the
     travel, ``−Δθ_y · X``, within the saddle's load-dependent compliance."""
@@ -272,7 +272,7 @@ def test_bad_arguments_are_refused(rigid, call, words):
 
 
 def test_y_axis_errors_depend_on_x_through_the_tables_weight(spec, rigid):
-    """SPEC's other consequence: on straight rails the saddle tilts as the table's weight moves
+    """The other consequence: on straight rails the saddle tilts as the table's weight moves
     over it. The tilt between X = −0.3 and +0.3 m equals the linear estimate ``K⁻¹ ΔM`` with
     ``K = Σ_c J_cᵀ T_c J_c`` the four Y carriages' tangents at preload carried to the saddle
     centre (assembled here) and ``ΔM = W ΔX`` about the machine's Y axis, within 5 % (1 %

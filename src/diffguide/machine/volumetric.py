@@ -22,7 +22,8 @@ point on the table top and ``m_P`` its motion relative to the saddle (the one-ax
 elastic deformation included: :func:`~diffguide.machine.equilibrium.point_motion`). The nominal
 frame is the pure translation ``T₀_P = Tr(o_S + r_T + P)``. For a rigid table ``m_P`` is the
 table's rigid motion carried to P, and ``T_P = T_Y(Y) · T_X(X) · Tr(P)`` with the table's pose
-``T_X = Tr(r_T) E(ε_T)``: the chain of the two axes (SPEC: ``T = T_Y · T_X``).
+``T_X = Tr(r_T) E(ε_T)``: the chain of the two axes, ``T = T_Y · T_X`` (ISO 230-1 Annex;
+Okafor & Ertekin 2000).
 
 Outputs, both relative to the reference position ``(X_ref, Y_ref)`` (where an instrument is
 zeroed), as the one-axis joint errors are:
