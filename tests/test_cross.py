@@ -296,3 +296,20 @@ def test_y_axis_errors_depend_on_x_through_the_tables_weight(spec, rigid):
     dq = np.linalg.solve(K, np.array([0.0, 0.0, 0.0, weight * 0.6, 0.0, 0.0]))
     assert abs(eb[2] - eb[0]) > 1e-7  # a tenth of a µrad
     np.testing.assert_allclose(eb[2] - eb[0], dq[3], rtol=0.05)  # θ about x' = machine Y
+
+
+def test_error_field_at_the_control_points_is_their_errors(rigid):
+    """The errors over the whole table top (every mesh node, from the nodes' modes) at the
+    control points' nodes equal the control points' errors (from the points' own rows)."""
+    from diffguide.machine.volumetric import cross_error_field
+
+    e = cross_errors(rigid, RAILS_X, RAILS_Y, X, Y)
+    xy, field = cross_error_field(rigid, e, 2, -1)
+    xy, field = np.asarray(xy), np.asarray(field)
+    for k, p in enumerate(np.asarray(e.points)[:, :2]):
+        node = int(np.argmin(np.sum((xy - p) ** 2, axis=1)))
+        assert np.allclose(xy[node], p, atol=1e-12)
+        np.testing.assert_allclose(field[node], np.asarray(e.errors[2, -1, k]), rtol=0,
+                                   atol=1e-12 * float(np.max(np.abs(e.errors))))
+    with pytest.raises(IndexError, match="i must be in -3 .. 2"):
+        cross_error_field(rigid, e, 3, 0)

@@ -40,4 +40,5 @@ from .spec import MachineSpec as MachineSpec
 from .spec import ScrewSpec as ScrewSpec
 from .volumetric import TABLE_ERROR_NAMES as TABLE_ERROR_NAMES
 from .volumetric import CrossErrors as CrossErrors
+from .volumetric import cross_error_field as cross_error_field
 from .volumetric import cross_errors as cross_errors

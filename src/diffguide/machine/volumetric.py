@@ -35,17 +35,20 @@ zeroed), as the one-axis joint errors are:
   with ``p = (0, 0, z, 1)`` in P's frame, minus the same at the reference.
 """
 
+import operator
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._core.checks import length
 from .._core.result import RESULTS
-from .._core.rigid import skew
+from .._core.rigid import skew, transfer
 from .._core.types import Array, Float
 from .cross import CrossMachine
 from .cross_equilibrium import Rails, cross_equilibrium_traced
-from .equilibrium import _error_if_failed, point_motion
+from .equilibrium import _error_if_failed, node_motion, point_motion
 from .kinematics import POSITION_RANGE, _check_sweep_inputs
 
 #: Names of the six errors of the table relative to the bed (machine axes X, Y, Z; rotations
@@ -92,6 +95,9 @@ class CrossErrors(eqx.Module):
         errors: six errors of the table relative to the bed at each point, relative to the
             reference, ``(n_x, n_y, p, 6)``, :data:`TABLE_ERROR_NAMES` (m, rad).
         result: result code per ``(X, Y)`` (a failed reference is reported everywhere).
+        table_interface: the table's interface DOF relative to the saddle at each ``X``
+            (m, rad). saddle: the saddle's motion at each ``(X, Y)`` (machine frame; m, rad).
+        table_interface_ref, saddle_ref: the same at the reference.
     """
 
     X: Float[Array, " n_x"]
@@ -106,6 +112,10 @@ class CrossErrors(eqx.Module):
     nominal_ref: Float[Array, "p 4 4"]
     errors: Float[Array, "n_x n_y p 6"]
     result: RESULTS
+    table_interface: Float[Array, "n_x m"]
+    table_interface_ref: Float[Array, " m"]
+    saddle: Float[Array, "n_x n_y 6"]
+    saddle_ref: Float[Array, " 6"]
 
     @property
     def converged(self) -> jax.Array:
@@ -119,10 +129,10 @@ class CrossErrors(eqx.Module):
         return (v - (self.poses_ref - self.nominal_ref) @ p)[..., :3]
 
 
-def _frames(cross: CrossMachine, table_u, saddle, X, Y, points):
-    """``(T_P, T₀_P, T₀_P⁻¹ T_P)``, ``(n_x, n_y, p, 4, 4)`` each, for the table's interface DOF
-    ``table_u`` ``(n_x, m)``, the saddle's motions ``(n_x, n_y, 6)`` and the points ``(p, 3)``."""
-    m = point_motion(cross.x_axis, table_u)  # (n_x, p, 6), relative to the saddle
+def _frames(cross: CrossMachine, m, saddle, X, Y, points):
+    """``(T_P, T₀_P, T₀_P⁻¹ T_P)``, ``(n_x, n_y, p, 4, 4)`` each, for the points' motions
+    relative to the saddle ``m`` ``(n_x, p, 6)``, the saddle's ``(n_x, n_y, 6)`` and the points
+    ``(p, 3)`` (table frame)."""
     zeros_x, zeros_y = jnp.zeros_like(X), jnp.zeros_like(Y)
     o_s = jnp.stack([zeros_y, Y, zeros_y - cross.dz], axis=-1)  # (n_y, 3)
     r_t = jnp.stack([X, zeros_x, zeros_x + cross.dz], axis=-1)  # (n_x, 3)
@@ -159,7 +169,8 @@ def cross_errors_traced(
     state = cross_equilibrium_traced(cross, rails_x, rails_y, Xa, Ya)
     xy = jnp.asarray(cross.x_axis.points_xy)
     points = jnp.concatenate([xy, jnp.full((xy.shape[0], 1), 1.0) * cross.table_top], axis=1)
-    poses, nominal, local = _frames(cross, state.table.interface, state.saddle, Xa, Ya, points)
+    m = point_motion(cross.x_axis, state.table.interface)  # (n_x, p, 6), relative to the saddle
+    poses, nominal, local = _frames(cross, m, state.saddle, Xa, Ya, points)
     six = htm_errors(local)
     ok_ref = (state.result == RESULTS.successful)[-1, -1]
     result = jax.tree_util.tree_map(
@@ -176,6 +187,10 @@ def cross_errors_traced(
         poses_ref=poses[-1, -1], nominal_ref=nominal[-1, -1],
         errors=errors,
         result=result,
+        table_interface=state.table.interface[:-1],
+        table_interface_ref=state.table.interface[-1],
+        saddle=state.saddle[:-1, :-1],
+        saddle_ref=state.saddle[-1, -1],
     )
 
 
@@ -199,3 +214,46 @@ def cross_errors(
     for name, value in (("X", X), ("Y", Y), ("X_ref", X_ref), ("Y_ref", Y_ref)):
         length(name, value, *POSITION_RANGE)  # traced values pass unchecked
     return _cross_errors_jit(cross, rails_x, rails_y, X, Y, X_ref, Y_ref, throw=throw)
+
+
+def _index(name: str, k, n: int) -> int:
+    """``k`` as an index into ``n`` positions (negative from the end), else ``IndexError``."""
+    try:
+        k = operator.index(k)
+    except TypeError:
+        raise TypeError(f"{name} must be an integer, got {k!r}") from None
+    if not -n <= k < n:
+        raise IndexError(f"{name} must be in -{n} .. {n - 1}, got {k}")
+    return k
+
+
+def cross_error_field(cross: CrossMachine, errors: CrossErrors, i: int, j: int):
+    """The table's six errors relative to the bed over the whole table top at grid position
+    ``(errors.X[i], errors.Y[j])``: the frame chain of the module docstring at every mesh
+    node's top-surface point, minus the same at the reference.
+
+    Arguments:
+        cross: the cross table ``errors`` was computed with.
+        errors: a grid (:func:`cross_errors`).
+        i, j: the X and Y indices (integers; negative count from the end).
+
+    Returns:
+        ``(xy, field)``: node positions on the table (m), ``(n_nodes, 2)``, and their errors
+        ``(n_nodes, 6)`` (m, rad), ordered as :data:`TABLE_ERROR_NAMES`.
+    """
+    i = _index("i", i, int(np.shape(errors.X)[0]))
+    j = _index("j", j, int(np.shape(errors.Y)[0]))
+    nodes = jnp.asarray(cross.x_axis.table.nodes)
+    if nodes.shape[0] == 0:
+        raise ValueError("cross_error_field: this table has no mesh nodes (an imported table "
+                         "knows only its retained nodes); use the control points")
+    top = jnp.stack([jnp.zeros(()), jnp.zeros(()), jnp.asarray(cross.table_top) + 0.0])
+    points = jnp.concatenate([nodes[:, :2], jnp.zeros_like(nodes[:, :1]) + top[2]], axis=1)
+
+    def six(u, q, x, y):
+        m = transfer(node_motion(cross.x_axis, u), top)[None]  # the top surface, (1, n, 6)
+        return htm_errors(_frames(cross, m, q[None, None], x[None], y[None], points)[2])[0, 0]
+
+    field = six(errors.table_interface[i], errors.saddle[i, j], errors.X[i], errors.Y[j]) - six(
+        errors.table_interface_ref, errors.saddle_ref, errors.X_ref, errors.Y_ref)
+    return nodes[:, :2], field
