@@ -83,11 +83,11 @@ class HelpFormatter(argparse.HelpFormatter):
         return text + " (default: %(default)s)"
 
 
-def add_machine_arguments(p) -> None:
+def add_machine_arguments(p, presets: tuple[str, ...] = PRESETS) -> None:
     p.add_argument(
         "--preset",
         default="majda2012",
-        choices=PRESETS,
+        choices=presets,
         help="built-in machine (the paper's vertical machining centre)",
     )
     p.add_argument(

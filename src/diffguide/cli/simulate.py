@@ -5,7 +5,7 @@ import argparse
 import numpy as np
 
 from .._core.limits import MAX_MESH_DIVISIONS, MAX_POSITIONS, check_range
-from ._common import add_machine_arguments, check_tolerances, machine_config
+from ._common import PRESETS, add_machine_arguments, check_tolerances, machine_config
 from ._export_options import (
     AXIS_SIDE_HELP,
     FORMAT_HELP,
@@ -14,6 +14,7 @@ from ._export_options import (
     check_export,
     export_spec,
 )
+from .simulate_cross import CROSS_PRESET, is_cross, run_cross
 
 
 def parse_positions(text: str) -> np.ndarray:
@@ -43,7 +44,16 @@ def add_parser(sub) -> None:
         "yaw in µrad = µm/m) at each control point, relative to the reference position x = 0.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    add_machine_arguments(p)
+    add_machine_arguments(p, presets=(*PRESETS, CROSS_PRESET))
+    p.add_argument(
+        "--grid-xy",
+        default="9x9",
+        metavar="NXxNY",
+        help=f"with --preset {CROSS_PRESET} or a cross machine file (the table on a saddle): "
+        "NX table positions X "
+        "and NY saddle positions Y over both strokes; the CSV has the six errors of the table "
+        "relative to the bed (EX..EZ µm, EA..EC µrad) at each point, from X = Y = 0",
+    )
     p.add_argument(
         "--variant",
         type=int,
@@ -265,6 +275,8 @@ def run(args) -> int:
     from ..io.table_source import config_machine
     from ..machine.majda2012 import paper_variant
 
+    if is_cross(args):
+        return run_cross(args)
     cfg = machine_config(args)
     positions = _positions(args, cfg)
     check_tolerances(args)

@@ -5,6 +5,7 @@ from .atomic import atomic_savefig as atomic_savefig
 from .atomic import atomic_write as atomic_write
 from .atomic import atomic_write_text as atomic_write_text
 from .config import config_from_spec as config_from_spec
+from .cross_config import load_cross_config as load_cross_config
 from .config import default_config as default_config
 from .config import dump_config as dump_config
 from .config import load_config as load_config
