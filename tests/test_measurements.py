@@ -313,6 +313,28 @@ def test_runs_agreeing_below_the_instrument_floor_get_the_floor():
     assert set(m.sigma_source) == {"floor"}
     assert len(notes) == 1 and "EXX at P5 (interferometer)" in notes[0]
     assert "below the floor 0.1 µm" in notes[0]
+    # they differ by one written digit (0.001 µm) at most: the note asks whether they are copies
+    assert "identical runs?" in notes[0]
+
+
+def test_a_genuine_repeatability_below_the_floor_is_not_called_identical_runs():
+    # 0.05 µm of real scatter written to 3 decimals (ranges of ~0.1 µm, 100 written steps):
+    # below the 0.1 µm floor of a linear interferometer, so σ of one reading is the floor, but
+    # the runs are not identical and the note must not say so
+    rng = np.random.default_rng(7)
+    lines = [HEADER + ",run,direction"]
+    for i in range(36):
+        for run in range(5):
+            for d in ("forward", "backward"):
+                lines.append(f"{i * 20},P5,0,0,EXX,{np.sin(i) + rng.normal(0, 0.05):.3f},um,"
+                             f"{run},{d}")
+    notes = []
+    m = merge_readings(parse_readings("\n".join(lines), "real.csv"), "real.csv", notes)
+    assert np.allclose(m.sigma, 0.1e-6 / math.sqrt(10), rtol=1e-12)
+    assert set(m.sigma_source) == {"floor"}
+    assert len(notes) == 1 and "below the floor 0.1 µm" in notes[0]
+    assert "identical runs" not in notes[0]
+    assert "repeatability finer than the instrument class" in notes[0]
 
 
 @pytest.mark.parametrize("n_odd", [1, 7])
