@@ -105,3 +105,62 @@ def test_cli_writes_the_draft_with_the_machines_points_and_never_over_a_file(tab
     assert main(["import", table, "--draft-profile", str(out), "--overwrite-draft"]) == 0
     assert "Gridpoints" in out.read_text(encoding="utf-8")
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary left
+
+
+def _wyler(folder):
+    """A Wyler-style level table in UTF-16: a title, metadata lines (instrument S/N, date, temperature
+    with a decimal comma, operator, machine S/N, the point and its place), ';' and decimal
+    commas, 'Pos. [mm]', 'Dir.' with arrows, pitch in mm/m; machine coordinates 0 … 600 mm."""
+    lines = ["WYLER AG - BlueLEVEL measurement", "Instrument S/N: 470-1234",
+             "Date: 2026-11-02 09:14", "Temperature: 20,4 °C", "Operator: J. Kowalski",
+             "Machine S/N: VMC-0815", "Measuring point: P1", "X [mm]: 450", "Y [mm]: 200", "",
+             "Pos. [mm];Run;Dir.;Pitch [mm/m]"]
+    canon = [make_vendor_tables.CANONICAL_HEADER]
+    for run in (1, 2):
+        for arrow, d in (("↑", "forward"), ("↓", "backward")):
+            for k in range(13):
+                v = round(0.004 * ((k * 7 + run * 3 + len(d)) % 11 - 5), 5)  # mm/m
+                lines.append(f"{50 * k},0;{run};{arrow};{v:.5f}".replace(".", ","))
+                canon.append(f"{50 * k - 300},P1,450,200,EBX,{v * 1000:.2f},um/m,,{run},{d},"
+                             "level")
+    table = folder / "wyler.csv"
+    table.write_bytes(("\r\n".join(lines) + "\r\n").encode("utf-16"))  # with a BOM
+    (folder / "wyler.csv.canonical.csv").write_text("\n".join(canon) + "\n")
+    return table, folder / "wyler.csv.canonical.csv"
+
+
+def _xl80(folder):
+    """A Renishaw-XL-80-like linear export: a key/value block, columns 'Run 1 ↑ (µm)' …,
+    an environment column; positions from 0 to 700 mm."""
+    lines = ["Renishaw LaserXL linear measurement,", "Serial number,XL80-98765",
+             "Date,07/12/2026", "Measurement,Linear", "Location,P5", "X position,0",
+             "Y position,0", "",
+             "Target (mm),Run 1 ↑ (µm),Run 1 ↓ (µm),Run 2 ↑ (µm),Run 2 ↓ (µm),Air temp (°C)"]
+    canon = [make_vendor_tables.CANONICAL_HEADER]
+    for k in range(15):
+        vals = {(r, d): round(0.8 * (k - 7) + 0.1 * r - (0.3 if d == "backward" else 0), 3)
+                for r in (1, 2) for d in ("forward", "backward")}
+        lines.append(f"{50 * k}," + ",".join(f"{vals[(r, d)]:.3f}" for r in (1, 2)
+                                             for d in ("forward", "backward")) + ",20.1")
+        canon += [f"{50 * k - 350},P5,0,0,EXX,{vals[(r, d)]:.3f},um,,{r},{d},interferometer"
+                  for r in (1, 2) for d in ("forward", "backward")]
+    table = folder / "xl80.csv"
+    table.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    (folder / "xl80.csv.canonical.csv").write_text("\n".join(canon) + "\n")
+    return table, folder / "xl80.csv.canonical.csv"
+
+
+@pytest.mark.parametrize("make, answers", [(_wyler, {"x0_mm": "300.0"}),
+                                           (_xl80, {"x0_mm": "350.0"})])
+def test_more_vendor_layouts_draft_to_one_line(make, answers, tmp_path):
+    table, canonical = make(tmp_path)
+    text, todo = draft_profile(table)
+    assert todo == ["x0_mm"], text
+    filled, written = complete(text, answers)
+    draft = tmp_path / "draft.toml"
+    draft.write_text(filled, encoding="utf-8")
+    got = read_any(table, profile=str(draft))
+    assert merged_table(got) == pytest.approx(merged_table(read_any(canonical)), rel=1e-9,
+                                              abs=1e-12)
+    assert {r.instrument for r in got.readings} == {r.instrument for r in
+                                                     read_any(canonical).readings}

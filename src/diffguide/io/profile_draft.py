@@ -186,7 +186,7 @@ def _x0_lines(d: _Draft, positions: list[float], meta_roles: dict, unit_in: bool
         return
     mm = [p * (25.4 if unit_in else 1.0) for p in positions]
     lo, hi = min(mm), max(mm)
-    if lo <= 0.0 <= hi:
+    if lo < 0.0 < hi:  # mid-stroke x = 0 (targets from 0 are machine coordinates)
         d.top.append("x0_mm = 0.0  # CHECK: the machine coordinate (mm) of the table position "
                      f"x = 0 (mid-stroke); the targets run {lo:g} … {hi:g} mm")
     else:
@@ -338,9 +338,9 @@ def _text_columns(d: _Draft, header, data, comma) -> tuple[dict, set]:
     used."""
     cols, used, found = {}, set(), {}
     rules = (("point", r"(point|messpunkt|punkt|location|station)( name)?"),
-             ("x_mm", r"x( position| pos)?\s*([(\[]mm[)\]])?"),
-             ("y_mm", r"y( position| pos)?\s*([(\[]mm[)\]])?"),
-             ("z_mm", r"z( position| pos)?\s*([(\[]mm[)\]])?|height.*"),
+             ("x_mm", r"x( position| pos)?"),
+             ("y_mm", r"y( position| pos)?"),
+             ("z_mm", r"z( position| pos)?|height"),
              ("quantity", r"quantity|größe|grösse|measurement|error type|parameter|test"),
              ("unit", r"units?|einheit"),
              ("run", r"run( no\.?| number| #)?|lauf|cycle|zyklus|messung"),
@@ -348,11 +348,11 @@ def _text_columns(d: _Draft, header, data, comma) -> tuple[dict, set]:
              ("sigma", r"sigma|σ|u|std|uncertainty|unsicherheit"),
              ("reference", r"(reference|referenz|ref)\b.*"))
     for k, h in enumerate(header):
-        name = " ".join(h.lower().split())
+        name = " ".join(_BRACKET.sub("", h.lower()).split()).rstrip(".:# ")
         for field, rx in rules:
             if field not in found and re.fullmatch(rx, name):
                 found[field] = h
-                used.add(name)
+                used.add(h.lower())
                 break
     for field, h in found.items():
         if field not in ("point", "x_mm", "y_mm"):  # those: _point_lines
@@ -399,10 +399,12 @@ def _header_table(d, layout, meta, meta_roles, points, text) -> None:
     numeric = [all(_num(r[k], comma) for r in data) for k in range(len(header))]
     cols, used = _text_columns(d, header, data, comma)
     for f in [f for f in ("x_mm", "y_mm", "z_mm") if f in cols]:
-        if not numeric[header.index(cols[f])]:
+        k = header.index(cols[f])
+        distinct = {r[k] for r in data if k < len(r)}
+        if not numeric[k] or len(distinct) > min(10, max(1, len(data) // 4)):  # a position
             if f == "z_mm":
                 d.reading.remove(f"{f}_column = {_q(cols[f])}")
-            used.discard(" ".join(cols[f].lower().split()))
+            used.discard(cols[f].lower())
             del cols[f]
     # the position column: target > position > nominal ... > the first numeric column
     order = (r"target", r"position|pos\b", r"nominal|soll|p[ij]\b", r"x\b")
