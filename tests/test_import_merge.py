@@ -296,3 +296,25 @@ def test_each_files_chi2_against_the_fit_of_all(tmp_path):
     # a row left out as an outlier is not counted; one file: no rows
     assert file_chi2(m, m.value, outliers=[0])[0]["rows"] == n - 1
     assert file_chi2(merge_readings(readings[: 2 * n]), m.value[:n]) == []
+
+
+@pytest.mark.slow  # a whole fit: 67 s of CPU on two busy cores (file_chi2's closed form above)
+def test_fit_accepting_a_reversed_file_reports_each_files_chi2(tmp_path):
+    """The bundled data with P1's runs 4-5 in a second file, negated, merged on request
+    (--accept-file-conflicts): report.json gives each file's χ² against the fit of both, and
+    the reversed file is the one the model explains worse per degree of freedom."""
+    rows = _rows()
+    moved = [r for r in rows if r["point"] == "P1" and r["run"] in "45"]
+    a = _write(tmp_path / "main.csv", [r for r in rows if r not in moved])
+    b = _write(tmp_path / "reversed.csv",
+               [{**r, "value": f"{-float(r['value']):.3f}"} for r in moved])
+    out = tmp_path / "out"
+    assert main(["fit", "--preset", "majda2012", "--measurements", str(a), "--measurements",
+                 str(b), "--accept-file-conflicts", "--mesh", "6x3", "--max-steps", "3",
+                 "--no-plots", "--out", str(out), "--quiet"]) == 0
+    files = {Path(f["file"]).name: f for f in
+             json.loads((out / "report.json").read_text())["elastic"]["files"]}
+    assert set(files) == {"main.csv", "reversed.csv"}
+    assert files["reversed.csv"]["readings"] == len(moved)
+    assert sum(f["rows"] for f in files.values()) > files["main.csv"]["rows"]
+    assert files["reversed.csv"]["chi2_per_dof"] > 3 * files["main.csv"]["chi2_per_dof"]
