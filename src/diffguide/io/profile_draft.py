@@ -315,14 +315,11 @@ def _value_columns(d: _Draft, header, data, comma, meta, meta_roles, used, cols
     for k, h in enumerate(header):
         if low[k] in used or not numeric[k] or not h.strip():
             continue
-        q = quantity_of(h)
-        u = _unit_of(h)
+        if re.search(r"temp|°c|°f|time|zeit|press|humid", low[k]):
+            continue  # the environment's columns: read by no profile
         generic = re.search(r"\b(value|messwert|wert|deviation|abweichung|error|fehler|reading)"
                             r"\b", low[k])
-        if q is None and not generic and not (u is not None and not re.search(
-                r"temp|°c|°f|time|zeit|press|humid", low[k])):
-            continue
-        if re.search(r"temp|°c|°f", low[k]):
+        if quantity_of(h) is None and not generic and _unit_of(h) is None:
             continue
         spec = [f"column = {_q(h)}"]
         quantity_line(spec, h)
@@ -415,8 +412,9 @@ def _header_table(d, layout, meta, meta_roles, points, text) -> None:
     unit = _unit_of(header[pos]) or ""
     unit_in = unit_key(unit, LINEAR_UNITS) == "in" or meta_roles.get("position_unit") and \
         unit_key(meta[meta_roles["position_unit"]], LINEAR_UNITS) == "in"
-    first = re.escape(header[pos].strip()) if pos == 0 else re.escape(header[0].strip())
-    d.table.append(f"start = {_lit('^' + first.replace(chr(92) + ' ', ' '))}"
+    first = re.escape(header[0].strip()).replace("\\ ", " ")  # spaces need no escape
+    start = '^"?' + first  # the name, quoted or not
+    d.table.append(f"start = {_lit(start)}"
                    f"  # the header line (line {layout.lines[layout.header_index][0]})")
     d.table.append(f"position = {_q(header[pos])}")
     if unit_in:
