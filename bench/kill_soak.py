@@ -5,7 +5,7 @@ then ``--kills`` runs killed (SIGKILL) and ``--interrupts`` runs interrupted (SI
 sends it), in random order, at uniformly random times in ``[start, T]`` (``T`` lowered when a
 run ends first), each into the same ``--out``; after each, the output folder must hold a
 complete result (``report.json`` parses, ``rails.csv`` present), the previous one or the new one.
-Every interrupted run must exit 130. A last run to completion must leave no hidden
+Every interrupted run must exit 130 without a traceback on stderr. A last run to completion must leave no hidden
 ``.<out>.*`` leftovers beside the folder. Prints the tally; exit status 1 when any check
 failed. Run (on a quiet machine, or ``nice``'d):
 
@@ -114,6 +114,8 @@ def soak(out: Path, kills: int, interrupts: int, mesh: str = "6x3", start_s: flo
                 tally["finished_first"] += 1
             else:
                 tally["interrupted"] += 1
+                if "Traceback" in err or "Exception ignored" in err:  # one line, no traceback
+                    tally["failures"].append(f"run {i}: SIGINT printed a traceback: {err[-800:]}")
                 if proc.returncode == 130:
                     tally["exit_130"] += 1
                 else:

@@ -266,3 +266,55 @@ def test_files_of_pure_noise_are_not_called_reversed():
                 for src in ("a.csv", "b.csv") for i, p in enumerate(x)]
         fired += bool(file_conflicts(rows))
     assert fired <= 2
+
+
+def test_each_files_chi2_against_the_fit_of_all(tmp_path):
+    """Two files of one level channel, one run each way, stated σ s: file A reads v + δ, file
+    B v − δ. Against the merged value v (the fit of both, here exact), file A's own value is
+    off by δ with σ² = ¼(s² + s²) (the mean of one forward and one backward reading), so
+    χ²_A = χ²_B = N · 2δ²/s² over its N rows; with the fit's ν its share N · ν / N_used."""
+    import dataclasses
+
+    from diffguide.inverse.file_chi2 import file_chi2
+    from diffguide.io.measurements import merge_readings, parse_readings
+
+    s, delta, n = 2.0, 0.7, 12
+    head = "position_mm,point,x_mm,y_mm,quantity,value,unit,run,direction,sigma\n"
+    readings = []
+    for name, d in (("a.csv", delta), ("b.csv", -delta)):
+        text = head + "".join(f"{20 * i},P1,0,0,EBX,{np.sin(i) + d:.3f},um/m,1,{w},{s}\n"
+                              for i in range(n) for w in ("forward", "backward"))
+        readings += [dataclasses.replace(r, source=name, run=name)
+                     for r in parse_readings(text, name)]
+    m = merge_readings(readings)
+    rows = file_chi2(m, m.value, dof=10.0)
+    assert [r["file"] for r in rows] == ["a.csv", "b.csv"]
+    for r in rows:
+        assert r["rows"] == n and r["readings"] == 2 * n
+        assert r["chi2"] == pytest.approx(n * 2 * delta**2 / s**2, rel=1e-9)
+        assert r["dof"] == pytest.approx(10.0)
+    # a row left out as an outlier is not counted; one file: no rows
+    assert file_chi2(m, m.value, outliers=[0])[0]["rows"] == n - 1
+    assert file_chi2(merge_readings(readings[: 2 * n]), m.value[:n]) == []
+
+
+@pytest.mark.slow  # a whole fit: 67 s of CPU on two busy cores (file_chi2's closed form above)
+def test_fit_accepting_a_reversed_file_reports_each_files_chi2(tmp_path):
+    """The bundled data with P1's runs 4-5 in a second file, negated, merged on request
+    (--accept-file-conflicts): report.json gives each file's χ² against the fit of both, and
+    the reversed file is the one the model explains worse per degree of freedom."""
+    rows = _rows()
+    moved = [r for r in rows if r["point"] == "P1" and r["run"] in "45"]
+    a = _write(tmp_path / "main.csv", [r for r in rows if r not in moved])
+    b = _write(tmp_path / "reversed.csv",
+               [{**r, "value": f"{-float(r['value']):.3f}"} for r in moved])
+    out = tmp_path / "out"
+    assert main(["fit", "--preset", "majda2012", "--measurements", str(a), "--measurements",
+                 str(b), "--accept-file-conflicts", "--mesh", "6x3", "--max-steps", "3",
+                 "--no-plots", "--out", str(out), "--quiet"]) == 0
+    files = {Path(f["file"]).name: f for f in
+             json.loads((out / "report.json").read_text())["elastic"]["files"]}
+    assert set(files) == {"main.csv", "reversed.csv"}
+    assert files["reversed.csv"]["readings"] == len(moved)
+    assert sum(f["rows"] for f in files.values()) > files["main.csv"]["rows"]
+    assert files["reversed.csv"]["chi2_per_dof"] > 3 * files["main.csv"]["chi2_per_dof"]

@@ -313,6 +313,35 @@ def test_runs_agreeing_below_the_instrument_floor_get_the_floor():
     assert set(m.sigma_source) == {"floor"}
     assert len(notes) == 1 and "EXX at P5 (interferometer)" in notes[0]
     assert "below the floor 0.1 µm" in notes[0]
+    # they differ by one written digit (0.001 µm) at most: the note asks whether they are copies
+    assert "identical runs?" in notes[0]
+
+
+def _noisy_exx(sigma_um: float, decimals: int, seed: int) -> str:
+    """EXX at P5, 36 positions × 5 runs × 2 directions: sin(i) µm plus Gaussian noise of
+    ``sigma_um``, written to ``decimals``."""
+    rng = np.random.default_rng(seed)
+    lines = [HEADER + ",run,direction"]
+    for i in range(36):
+        for run in range(5):
+            for d in ("forward", "backward"):
+                v = np.sin(i) + rng.normal(0, sigma_um)
+                lines.append(f"{i * 20},P5,0,0,EXX,{v:.{decimals}f},um,{run},{d}")
+    return "\n".join(lines)
+
+
+def test_a_genuine_repeatability_below_the_floor_is_not_called_identical_runs():
+    # 0.05 µm of real scatter written to 3 decimals (ranges of ~0.1 µm, 100 written steps):
+    # below the 0.1 µm floor of a linear interferometer, so σ of one reading is the floor, but
+    # the runs are not identical and the note must not say so
+    notes = []
+    m = merge_readings(parse_readings(_noisy_exx(0.05, 3, seed=7), "real.csv"), "real.csv",
+                       notes)
+    assert np.allclose(m.sigma, 0.1e-6 / math.sqrt(10), rtol=1e-12)
+    assert set(m.sigma_source) == {"floor"}
+    assert len(notes) == 1 and "below the floor 0.1 µm" in notes[0]
+    assert "identical runs" not in notes[0]
+    assert "repeatability finer than the instrument class" in notes[0]
 
 
 @pytest.mark.parametrize("n_odd", [1, 7])
@@ -393,15 +422,8 @@ def test_a_bad_resolution_names_the_line_and_the_field(raw):
 
 def test_a_real_scatter_above_the_floor_is_kept():
     # 0.3 µm scatter of a linear interferometer: above its 0.1 µm floor, used as it is
-    rng = np.random.default_rng(3)
-    lines = [HEADER + ",run,direction"]
-    for i in range(36):
-        for run in range(5):
-            for d in ("forward", "backward"):
-                v = np.sin(i) + rng.normal(0, 0.3)
-                lines.append(f"{i * 20},P5,0,0,EXX,{v:.4f},um,{run},{d}")
     notes = []
-    m = merge_readings(parse_readings("\n".join(lines)), notes=notes)
+    m = merge_readings(parse_readings(_noisy_exx(0.3, 4, seed=3)), notes=notes)
     assert set(m.sigma_source) == {"scatter"} and not notes
     assert m.sigma[0] * math.sqrt(10) * 1e6 == pytest.approx(0.3, rel=0.15)
 

@@ -159,6 +159,23 @@ def test_html_states_what_each_file_says_of_itself(fitted):
         assert needle in text, needle
 
 
+def test_html_shows_each_files_chi2(fitted):
+    """Several files (a reversed one accepted with --accept-file-conflicts): report.json's
+    elastic.files rows, each file's χ² against the fit of all, are a table on the page; one
+    file gives no such table (and an empty list)."""
+    out, _ = fitted
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["elastic"]["files"] == [] and 'id="files"' not in report_html(rep)
+    rep["elastic"]["files"] = [
+        {"file": "a<1>.csv", "rows": 36, "readings": 360, "chi2": 30.5, "dof": 33.0,
+         "chi2_per_dof": 30.5 / 33.0},
+        {"file": "b.csv", "rows": 36, "readings": 144, "chi2": 4012.0, "dof": 33.0,
+         "chi2_per_dof": 4012.0 / 33.0}]
+    text = report_html(rep)
+    for needle in ('id="files"', "a&lt;1&gt;.csv", "30.5", "0.924", "b.csv", "4012", "121.576"):
+        assert needle in text, needle
+
+
 def test_console_says_the_same(fitted):
     out, console = fitted
     st = json.loads((out / "report.json").read_text())["straightness"]

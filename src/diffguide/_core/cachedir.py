@@ -15,6 +15,7 @@ import stat
 import time
 from pathlib import Path
 
+from .cacheentry import discard
 from .compat import jax_cache_decompress
 
 #: What :func:`prune` may remove: (sub-folder, file-name pattern); a leading ``.`` is an atomic
@@ -106,11 +107,10 @@ def drop_jax_entries(folder: str | os.PathLike, module_name: str) -> list[tuple[
         bad = [(path, "JAX could not load it") for path in found]
     removed = []
     for path, why in bad:
-        try:
-            path.unlink()
-        except OSError:
-            continue
-        removed.append((path, why))
+        if os.path.isdir(path) and not os.path.islink(path):
+            why = "a directory in its place"
+        if discard(path):  # a file, a link, or a folder in its place
+            removed.append((path, why))
     return removed
 
 

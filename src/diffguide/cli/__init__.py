@@ -158,7 +158,7 @@ def _run(args) -> int:
         )
         return EXIT_INTERNAL
     finally:
-        args.figures.close()
+        args.figures.close(kill=_interrupt.interrupted())  # interrupted: no 5 s wait for it
 
 
 def console_main() -> None:
@@ -176,6 +176,8 @@ def console_main() -> None:
         code = main()
     except KeyboardInterrupt:  # before main's handler, or while main reports the first one
         code = None
+    finally:  # past the last checkpoint: a Ctrl-C is recorded, never raised (atexit would print
+        _interrupt.hold()  # its traceback; so would the last line and the flush below)
     try:
         atexit._run_exitfuncs()  # logging, JAX and anything else registered
     except KeyboardInterrupt:

@@ -248,6 +248,9 @@ def prepare_runtime(args):
             jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
             from .._core.cachedir import prune
             from .._core.caches import Caches
+            from .._core.jaxentries import check as check_jax_entries
+
+            check_jax_entries(folder)  # swapped entries, a folder in an entry's place
 
             caches = Caches(tables=folder / TABLE_SUBDIR, exports=folder / EXPORT_SUBDIR)
             prune(folder, cache_max_bytes())

@@ -4,6 +4,8 @@
 import argparse
 import sys
 
+from ._common import PRESETS
+
 
 def x0_value(text: str):
     """``--x0-mm``'s value: a number (mm) or ``middle``."""
@@ -106,6 +108,18 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "decimal mark, columns -> quantities and units, metadata, x0, rows read and "
                    "lines skipped (--out is then optional)")
     p.add_argument("--out", metavar="FILE.csv", default=None, help="canonical long CSV to write")
+    p.add_argument("--draft-profile", metavar="OUT.toml", default=None,
+                   help="write a draft profile for FILE from its own layout and metadata "
+                   "(separator, decimal mark, encoding, header row, position column and unit, "
+                   "value columns and units, run/direction columns, metadata lines) and stop; "
+                   "complete its lines marked REQUIRED, then --profile OUT.toml "
+                   "(docs/file-formats.md, 'Draft profiles'); an existing OUT.toml is refused")
+    p.add_argument("--overwrite-draft", action="store_true",
+                   help="with --draft-profile: replace an existing OUT.toml")
+    p.add_argument("--preset", default=None, choices=PRESETS,
+                   help="with --draft-profile: list this machine's control points in the draft")
+    p.add_argument("--config", metavar="MACHINE.toml", default=None,
+                   help="with --draft-profile: list this machine's control points in the draft")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
     return p
@@ -175,11 +189,36 @@ def explain_lines(infos) -> list[str]:
     return out
 
 
+def draft(args) -> int:
+    """``--draft-profile``: the draft of FILE's profile, written atomically (refused over an
+    existing file unless ``--overwrite-draft``); what is left to write, on the console."""
+    from ..io.profile_draft import draft_profile, write_draft
+
+    if len(args.input) != 1 or args.profile or args.out:
+        raise ValueError("--draft-profile drafts one FILE's profile (without --profile and "
+                         "--out); then read it: --profile OUT.toml")
+    points = None
+    if args.config or args.preset:
+        from ._common import machine_config
+
+        points = machine_config(args)["points"]
+    text, todo = draft_profile(args.input[0], args.encoding, points)
+    write_draft(args.draft_profile, text, args.overwrite_draft)
+    if not args.quiet:
+        left = (f"{len(todo)} line(s) marked REQUIRED to complete: {', '.join(todo)}" if todo
+                else "nothing marked REQUIRED; confirm the lines marked CHECK")
+        print(f"wrote {args.draft_profile}: draft profile for {args.input[0]}; {left}; then: "
+              f"diffguide import {args.input[0]} --profile {args.draft_profile} --explain")
+    return 0
+
+
 def run(args) -> int:
     from ..io.atomic import atomic_write_text
     from ..io.importers import format_long, import_many
     from ..io.measurements import merge_readings
 
+    if args.draft_profile is not None:
+        return draft(args)
     if args.out is None and not args.explain:
         raise ValueError("diffguide import: --out FILE.csv is required (or --explain)")
     notes: list[str] = []

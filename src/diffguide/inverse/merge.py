@@ -221,9 +221,10 @@ def _groups(readings, names) -> dict:
 
 def _scatter_sums(groups):
     """Per channel: the within-direction sum of squares and its degrees of freedom, the
-    (position, direction) groups read more than once, and how many of them are alike."""
+    (position, direction) groups read more than once, how many of them are alike, and the
+    largest range (max − min) of one group."""
     ss, dof = defaultdict(float), defaultdict(int)
-    repeated, same = defaultdict(int), defaultdict(int)
+    repeated, same, spread = defaultdict(int), defaultdict(int), defaultdict(float)
     for (p, q, inst, _), dirs in groups.items():
         for rows in dirs.values():
             if len(rows) > 1:
@@ -232,7 +233,8 @@ def _scatter_sums(groups):
                 dof[(p, q, inst)] += len(rows) - 1
                 repeated[(p, q, inst)] += 1
                 same[(p, q, inst)] += int(np.ptp(v) == 0.0)
-    return ss, dof, repeated, same
+                spread[(p, q, inst)] = max(spread[(p, q, inst)], float(np.ptp(v)))
+    return ss, dof, repeated, same, spread
 
 
 def _note_copies(copies, groups, repeated, same, names, source, notes) -> None:
@@ -264,9 +266,19 @@ def _finest_rounding(groups) -> dict:
     return res
 
 
-def _pooled_scatter(ss, dof, copies, res, names, source, notes):
+def _alike_to_written_digits(spread: float, rounding: float) -> bool:
+    """Whether readings whose largest range at one position and direction is ``spread`` are
+    identical as far as the file tells: no range above one step ``q = √12 · rounding`` of the
+    written digits (``rounding`` = ``q/√12``, 0: unknown, then only exact equality)."""
+    return spread <= math.sqrt(12.0) * rounding * (1 + 1e-9) + 1e-18
+
+
+def _pooled_scatter(ss, dof, copies, res, names, source, notes, spread=None):
     """Per channel with enough degrees of freedom (and not copies): the pooled σ of one
-    reading, raised to its floor (step 3); and the channels raised."""
+    reading, raised to its floor (step 3); and the channels raised. The note asks "identical
+    runs?" only where the runs agree to the written digits at every position
+    (:func:`_alike_to_written_digits`); a genuine repeatability finer than the floor (runs
+    that differ by more than a written step) is named as that."""
     scatter, floored = {}, set()
     for ch in sorted(dof):
         if dof[ch] < MIN_SCATTER_DOF or ch in copies:
@@ -280,11 +292,14 @@ def _pooled_scatter(ss, dof, copies, res, names, source, notes):
             floored.add(ch)
             if notes is not None:
                 u = user_unit(quantity)
+                alike = _alike_to_written_digits((spread or {}).get(ch, 0.0), res.get(ch, 0.0))
+                why = ("identical runs? (they differ by at most one written digit)" if alike
+                       else "a repeatability finer than the instrument class")
                 notes.append(
                     f"{source}: {quantity} at {names[p]} ({inst}): the runs' pooled scatter "
                     f"{s * 1e6:.3g} {u} ({dof[ch]} degrees of freedom) is below the floor "
                     f"{floor * 1e6:.3g} {u} (the larger of the readings' rounding and "
-                    f"{SCATTER_FLOOR_FRACTION:g} × the instrument's default σ): identical runs? "
+                    f"{SCATTER_FLOOR_FRACTION:g} × the instrument's default σ): {why}; "
                     "σ of one reading set to the floor"
                 )
             s = floor
@@ -442,14 +457,14 @@ def merge_readings(readings, source: str = "<readings>", notes: list | None = No
     check_grid(readings, source, allow_many_positions)
     names, xy = _points(readings)
     groups, rejected = _groups(readings, names)
-    ss, dof, repeated, same = _scatter_sums(groups)
+    ss, dof, repeated, same, spread = _scatter_sums(groups)
     # runs identical at (nearly) every position: copies of one run (or a display coarser than
     # the noise), which carry the information of one run — merged as one reading per direction
     copies = {ch for ch in dof if same[ch] >= COPIES_FRACTION * repeated[ch]}
     if notes is not None:
         _note_copies(copies, groups, repeated, same, names, source, notes)
     res = _finest_rounding(groups)
-    scatter, floored = _pooled_scatter(ss, dof, copies, res, names, source, notes)
+    scatter, floored = _pooled_scatter(ss, dof, copies, res, names, source, notes, spread)
     cols, row_of = _rows(groups, names, scatter, floored, copies, res, source)
     return Measurements(
         point_names=tuple(names),

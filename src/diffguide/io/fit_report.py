@@ -6,6 +6,7 @@ import numpy as np
 from ..inverse import identifiability
 from ..inverse.data import QUANTITIES
 from ..inverse.diagnose import MISFIT_CHI2, diagnose_fit
+from ..inverse.file_chi2 import file_chi2
 from ..inverse.validity import fit_checks
 from ..machine.validity import rail_range
 from ..studies.iso230_2 import channel_figures
@@ -183,7 +184,10 @@ def fit_summary(fit, meas, seconds: float) -> dict:
                                  "value": d["value"] * 1e6, "sigma": d["sigma"] * 1e6}
                                 for d in fit.joint_steps()],
         "s_range_mm": [fit.basis.start * 1e3, fit.basis.end * 1e3],
-        "gauge": list(fit.gauge), "channels": channels, "fit_seconds": seconds,
+        "gauge": list(fit.gauge), "channels": channels,
+        # several files: each one's χ² against the fit of all (a reversed file accepted with
+        # --accept-file-conflicts shows as the one the model does not explain)
+        "files": file_chi2(meas, fit.fitted, fit.outliers, fit.dof), "fit_seconds": seconds,
         "units": "user units: µm for EXX/EYX/EZX, µm/m (µrad) for EAX/EBX/ECX",
     }
 

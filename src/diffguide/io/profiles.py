@@ -112,7 +112,9 @@ def _field_keys() -> dict:
 
 def check_profile(prof: dict, source: str = "<profile>") -> None:
     """``ProfileError`` naming the key for an unknown key, a wrong type, a bad regular
-    expression or value."""
+    expression or value; a value still ``"?"`` (a draft's line to complete, :mod:`.profile_draft`)
+    named with its key."""
+    _check_placeholders(prof, "", source)
     _check_keys({k: v for k, v in prof.items() if k != "_source"}, _TOP, "", source)
     _check_keys(prof.get("table", {}), _TABLE, "table.", source)
     _check_keys(prof.get("targets", {}), {"start": str}, "targets.", source)
@@ -166,6 +168,18 @@ def check_profile(prof: dict, source: str = "<profile>") -> None:
                 r is not None and not isinstance(r, int) for r in refs):
             raise ProfileError(f"{source}: with table.header = false every column is a 1-based "
                                "index (and [[values]] use 'column', not 'match')")
+
+
+def _check_placeholders(node, where: str, source: str) -> None:
+    """``ProfileError`` for the first value ``"?"`` below ``node``, naming its key."""
+    items = (node.items() if isinstance(node, dict) else
+             ((f"[{k + 1}]", v) for k, v in enumerate(node)) if isinstance(node, list) else ())
+    for k, v in items:
+        key = f"{where}{k}" if str(k).startswith("[") or not where else f"{where}.{k}"
+        if v == "?":
+            raise ProfileError(f"{source}: key {key!r} is still \"?\" (a draft profile: write "
+                               "its value; the comment beside it says what)")
+        _check_placeholders(v, key, source)
 
 
 def _regex(text, key, source):

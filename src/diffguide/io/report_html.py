@@ -148,6 +148,21 @@ def _determined_section(report: dict) -> str:
             f"<ul>{''.join(items)}</ul>")
 
 
+def _files_section(report: dict) -> str:
+    """Each measurement file's χ² against the fit of all of them (several files only)."""
+    files = report["elastic"].get("files") or []
+    if not files:
+        return ""
+    rows = "".join(
+        f"<tr><td>{_e(f['file'])}</td><td class=\"num\">{f['rows']}</td>"
+        f"<td class=\"num\">{f['chi2']:.4g}</td><td class=\"num\">{f['dof']:.4g}</td>"
+        f"<td class=\"num\">{_num(f['chi2_per_dof'], 3)}</td></tr>" for f in files)
+    return ("<table id=\"files\"><tr><th>measurement file</th><th>merged values read</th>"
+            "<th>χ²</th><th>dof (its share)</th><th>χ²/dof</th></tr>" + rows + "</table>"
+            "<p class=\"note\">Each file's values against the fit of all the files; a file "
+            "far above 1 is the one the model does not explain (a reversed sensor?).</p>")
+
+
 def _compensation_section(report: dict) -> str:
     comp = report["compensation"]
     rows = "".join(
@@ -246,6 +261,7 @@ def report_html(report: dict, figures: dict | None = None) -> str:
         ("" if not plan else
          f"<p>What more instruments would determine there: <code>{_e(plan)}</code></p>"),
         "<h2>Compensation and residuals</h2>", _compensation_section(report),
+        _files_section(report),
         _figure(figures, "residuals.png",
                 "Residuals, measured − fitted, per channel against the table position; error "
                 "bars ±1σ (the standard uncertainty of each merged value). EAX roll, EBX pitch, "
