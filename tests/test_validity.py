@@ -186,3 +186,9 @@ def test_rail_range_reports_the_departure_written_out_in_numpy():
     (w,) = rail_range(machine, rails, x)
     assert w.code == "rail_beyond_contact_range"
     assert f"{worst * 1e6:.4g} µm" in w.message
+
+    def sample(r, s):  # the host evaluation the fit's report passes (the same rails)
+        e = amp * np.sin(2 * np.pi * s / wl) if r == 0 else np.zeros_like(s)
+        return np.zeros_like(s), e
+    (w_host,) = rail_range(machine, rails, x, sample=sample)
+    assert w_host.message == w.message

@@ -164,8 +164,8 @@ def _wavelength_transfer(fit, R, n_wavelengths: int, threshold: float) -> list[d
     combos = []
     for plane, kind in _COMBOS:
         w = _combo_profiles(plane, kind)
-        rows = [{"wavelength_mm": float(lam_w * 1e3),
-                 "transfer": _transfer(BZ, pinv, R, w, s, lam_w)} for lam_w in lams]
+        rows = [{"wavelength_mm": float(lam_w * 1e3), "transfer": t}
+                for lam_w, t in zip(lams, _transfers(BZ, pinv, R, w, s, lams))]
         bad = [r["wavelength_mm"] for r in rows if r["transfer"] is not None
                and r["transfer"] < threshold]
         combos.append({
@@ -178,20 +178,23 @@ def _wavelength_transfer(fit, R, n_wavelengths: int, threshold: float) -> list[d
     return combos
 
 
-def _transfer(BZ, pinv, R, w, s, lam_w):
-    """The recovered fraction of a sinusoid of wavelength ``lam_w`` (m) in the combination
-    ``w``, the worse of two phases; None where both phases are gauge modes."""
-    worst = np.inf
-    for phase in (0.0, 0.5 * np.pi):
-        wave = np.sin(2 * np.pi * (s - s.mean()) / lam_w + phase)
-        target = np.concatenate([wi * wave for wi in w])
-        theta = pinv @ target
-        e_in = BZ @ theta
-        if e_in @ e_in < 1e-6 * (target @ target):  # a gauge mode: nothing to recover
-            continue
-        e_out = BZ @ (R @ theta)
-        worst = min(worst, float(e_in @ e_out / (e_in @ e_in)))
-    return None if not np.isfinite(worst) else worst
+def _transfers(BZ, pinv, R, w, s, lams) -> list:
+    """The recovered fraction of a sinusoid of each wavelength of ``lams`` (m) in the
+    combination ``w``, the worse of two phases; None where both phases are gauge modes. Every
+    wavelength and phase in one product per step (the sinusoids as the columns of one matrix)."""
+    phases = np.array([0.0, 0.5 * np.pi])
+    wave = np.sin(2 * np.pi * (s - s.mean()) / np.asarray(lams)[:, None, None]
+                  + phases[None, :, None])  # (wavelength, phase, s)
+    target = np.concatenate([wi * wave for wi in w], axis=-1).reshape(-1, 4 * len(s)).T
+    theta = pinv @ target
+    e_in = BZ @ theta
+    e_out = BZ @ (R @ theta)
+    size = np.einsum("ij,ij->j", e_in, e_in)
+    gauge = size < 1e-6 * np.einsum("ij,ij->j", target, target)  # nothing to recover
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(gauge, np.inf, np.einsum("ij,ij->j", e_in, e_out) / size)
+    worst = ratio.reshape(len(lams), len(phases)).min(axis=1)
+    return [float(v) if np.isfinite(v) else None for v in worst]
 
 
 def _profile_sigma(fit) -> list[dict]:

@@ -76,8 +76,13 @@ def fit_validity(fit, meas, machine) -> list:
     """The validity warnings of the elastic fit (:mod:`diffguide.inverse.validity`: null data,
     χ²/dof, measured rotations; :func:`diffguide.machine.validity.rail_range`: the fitted rails
     under the carriages at the measured positions)."""
+    def sample(r, s):  # the fitted rails from their basis (NumPy: nothing to compile)
+        B = fit.basis.matrix(np.ravel(s))
+        return tuple((B @ fit.coeffs[r, p]).reshape(np.shape(s)) for p in (1, 0))  # e_y, e_z
+
     return [*fit_checks(fit, meas),
-            *rail_range(machine, fit.rails(), np.unique(np.asarray(meas.position)))]
+            *rail_range(machine, fit.rails(), np.unique(np.asarray(meas.position)),
+                        sample=sample)]
 
 
 def _truth_section(profiles, truth, truth_file) -> dict:

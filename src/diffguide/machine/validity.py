@@ -102,11 +102,25 @@ def _rails_under_carriages(machine, rails, x):
     return jax.vmap(machine.rail_under_carriages, in_axes=(0, None))(x, rails)
 
 
-def rail_range(machine, rails, positions) -> list[Validity]:
+def _sampled_under_carriages(machine, sample, x):
+    """:func:`_rails_under_carriages` from a host evaluation of the rails, ``sample(r, s) ->
+    (e_y, e_z)`` (m at ``s`` in m, any shape): ``(n_pos, k, n, 2)``, nothing compiled."""
+    xi = np.asarray(machine.carriage.xi, float)
+    cx = np.asarray(machine.carriage_x, float)
+    out = np.zeros((len(x), len(cx), len(xi), 2))
+    for k, r in enumerate(machine.carriage_rail):
+        ey, ez = sample(r, x[:, None] + cx[k] + xi)
+        out[:, k, :, 0], out[:, k, :, 1] = ey, ez
+    return out
+
+
+def rail_range(machine, rails, positions, *, sample=None) -> list[Validity]:
     """A warning when the rails, under any carriage at ``positions`` (m), depart from a straight
     line by more than the contact's small-deflection range ``CONTACT_RANGE·g₀`` (module
     docstring): a rigid carriage cannot follow them, so its elements would be loaded beyond the
-    contact law's range."""
+    contact law's range. ``sample``: the same rails evaluated on the host, ``sample(r, s) ->
+    (e_y, e_z)`` (m at ``s`` in m, any shape; rail ``r`` = 0, 1), where the caller has that
+    (a fit's spline basis): then no program is compiled for the check."""
     g0 = float(machine.carriage.preload_approach)
     xi = np.asarray(machine.carriage.xi, float)
     if xi.size < 3:
@@ -114,7 +128,8 @@ def rail_range(machine, rails, positions) -> list[Validity]:
     x = np.unique(np.asarray(positions, float).ravel())
     # every position in one batched evaluation (a loop over positions ran the rails' spline
     # op by op per position in eager JAX: seconds for a fit's 71 positions)
-    under = np.asarray(_rails_under_carriages(machine, rails, x))
+    under = (np.asarray(_rails_under_carriages(machine, rails, x)) if sample is None
+             else _sampled_under_carriages(machine, sample, x))
     worst = _departure(np.moveaxis(under, -1, 1), xi)  # (n_pos, 2 planes, k, n) → along n
     if worst <= CONTACT_RANGE * g0:
         return []
