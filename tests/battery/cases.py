@@ -421,6 +421,33 @@ def large_rails_horizontal() -> Case:
     return _case(large_rails_horizontal, truth=Truth(planes), seed=1818)
 
 
+def _random_planes(seed: int, correlation_length: float, shortest: float, longest: float = 0.9,
+                   n: int = MAX_WAVES) -> dict:
+    r"""Four profiles drawn from a stationary squared-exponential Gaussian process
+    (:class:`diffguide.studies.GaussianRailModel`'s kernel) as a random-phase spectral sum of
+    ``n`` sines per profile, wavelengths log-uniform over ``[shortest, longest]`` (m): with
+    ``k = 2π/λ`` the process' spectral density is ``∝ exp(−(kℓ)²/2)``, and a log-uniform ``λ``
+    samples ``dk = k d ln λ``, so each sine's amplitude is ``N(0, 1)·√(k exp(−(kℓ)²/2))`` (µm,
+    scaled afterwards). Unlike :func:`rich_truth` (amplitudes falling with ``λ``) the short
+    wavelengths carry as much as the process gives them."""
+    rng = np.random.default_rng(seed)
+    planes = {}
+    for key in BUNDLED_TRUTH.planes:
+        lam = np.exp(rng.uniform(np.log(shortest), np.log(longest), n))
+        k = 2 * np.pi / lam
+        amp = rng.normal(0.0, 1.0, n) * np.sqrt(k * np.exp(-0.5 * (k * correlation_length) ** 2))
+        phase = rng.uniform(0.0, 2 * np.pi, n)
+        planes[key] = Plane((0.0,), tuple(zip(amp, lam, phase)))
+    return planes
+
+
+def large_random_rails() -> Case:
+    """Random rails (30 mm correlation length, content 90–900 mm) at 15 µm V / 12 µm H RMS."""
+    planes = _plane_scaled(_random_planes(3939, 0.030, 0.090),
+                           {"vertical": 15.0, "horizontal": 12.0})
+    return _case(large_random_rails, truth=Truth(planes), seed=3939)
+
+
 #: Wavelengths (m) that the :data:`PLANNED` layout leaves undetermined on the ``majda2012``
 #: preset (its identifiability report lists 285–363 mm, around the carriage spacing).
 UNDETERMINED_WAVELENGTHS = (0.285, 0.320, 0.363)
@@ -460,6 +487,7 @@ CASES: dict[str, Callable[[], Case]] = {
         preload_13pct,
         rich_data,
         large_rails_horizontal,
+        large_random_rails,
         planned_undetermined,
     )
 }
