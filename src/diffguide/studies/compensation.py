@@ -111,10 +111,14 @@ def common_slope_note(fit, x_mm, x0_mm: float = 0.0) -> tuple[str, ...]:
     channels, their fitted alignment slopes (µm/m, with their posterior σ) bound what the data
     showed: the common slope is an unknown part of each.
 
-    Arguments: fit: the :class:`~diffguide.inverse.RailFit`. x_mm: the table's positions (mm,
+    Arguments: fit: the :class:`~diffguide.inverse.RailFit` (or a
+    :class:`~diffguide.inverse.predict.FitPosterior`: no alignment slopes then). x_mm: the table's positions (mm,
     x = 0 the reference). x0_mm: the machine coordinate of x = 0 (mm).
     """
-    planes = [f"{e} ({p} plane)" for (p, e), fixed in zip(_PLANES, fit.fix_slope) if fixed]
+    # a FitPosterior (predict's, read back from posterior.json) holds neither: every fit fixes
+    # both planes' common slope (inverse.problem) and its alignment slopes are in report.json
+    fix_slope = getattr(fit, "fix_slope", (True, True))
+    planes = [f"{e} ({p} plane)" for (p, e), fixed in zip(_PLANES, fix_slope) if fixed]
     if not planes:
         return ()
     reach = float(np.max(np.abs(np.asarray(x_mm, float)))) * 1e-3  # µm per µm/m at the ends
@@ -126,7 +130,7 @@ def common_slope_note(fit, x_mm, x0_mm: float = 0.0) -> tuple[str, ...]:
         f"unknown slope; it is NOT in the sigma; 1 um/m of it is {reach:.3g} um at the "
         "table's ends",
     ]
-    n = len(fit.alignment)
+    n = len(getattr(fit, "alignment", ()))
     if n:
         cov = np.asarray(fit.posterior_cov, float)
         sd = (np.sqrt(np.clip(np.diag(cov)[-n:], 0.0, None)) if cov.shape[0] >= n
