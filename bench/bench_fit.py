@@ -37,19 +37,19 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data" / "majda2012_measurements.csv"
 #: (label, module, attribute) of the wrapped stages, in the order of a run.
 STAGES = (
-    ("read and merge", "diffguide.cli.fit", "_read"),
+    ("read and merge", "diffguide.jobs.fit", "_read"),
     ("machine family (cached tables)", "diffguide.inverse.structure", "MachineFamily.build"),
-    ("fit: all of fit_rails", "diffguide.cli.fit", "_fit_all"),
+    ("fit: all of fit_rails", "diffguide.jobs.fit", "_fit_all"),
     ("  structure stage", "diffguide.inverse.solve", "structure_stage"),
     ("    Newton search", "diffguide.inverse.structure_stage", "maximise_marginal"),
     ("    Laplace at the stated sigma", "diffguide.inverse.structure_stage", "laplace"),
     ("  linearisations (all)", "diffguide.inverse.problem", "FitProblem.linearise"),
     ("  posterior and bands", "diffguide.inverse.fit", "posterior"),
-    ("outputs: all", "diffguide.cli.fit", "_write_outputs"),
+    ("outputs: all", "diffguide.jobs.fit", "_outputs"),
     ("  fit_report (identifiability, validity)", "diffguide.io.fit_report", "fit_report"),
     ("  straightness draws", "diffguide.studies.straightness", "uncertain_straightness"),
     ("  waiting for the figures", "diffguide.plotting.render", "FigureWorker.wait"),
-    ("  report.html", "diffguide.cli._report", "html_text"),
+    ("  report.html", "diffguide.jobs.fit_report", "html_text"),
 )
 
 
@@ -103,6 +103,7 @@ def stages(cache: str) -> None:
     t0, c0 = time.perf_counter(), time.process_time()
     from diffguide.cli import main
     import diffguide.cli.fit  # noqa: F401
+    import diffguide.jobs.fit  # noqa: F401
     import diffguide.inverse  # noqa: F401 - what the command imports when it runs
     import diffguide.io.fit_report  # noqa: F401
     import jax  # noqa: F401

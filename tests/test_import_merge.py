@@ -191,7 +191,7 @@ def test_the_stroke_end_takes_a_position_a_micrometre_beyond_and_names_one_furth
     """A position 0.8 µm past the stroke's end (an inch file's rounding) is the end; 10 µm past
     it is refused, the position written to 0.1 µm (was '-350 mm is outside ±350 mm')."""
     from diffguide.cli import build_parser
-    from diffguide.cli.fit import _check_inputs
+    from diffguide.jobs.fit import check_inputs as _check_inputs
     from diffguide.io.config import default_config
 
     cfg = default_config()

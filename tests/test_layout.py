@@ -1,6 +1,7 @@
 """The package layout: the layers in one order, every import going down it.
 
-``_core -> contact -> guideway -> fe -> machine -> inverse -> studies -> io -> plotting -> cli``,
+``_core -> contact -> guideway -> fe -> machine -> inverse -> studies -> io -> plotting -> jobs
+-> cli``,
 then ``__main__`` (``python -m diffguide``: the CLI's entry), ``presets`` (data the CLI and users choose) and the root ``__init__`` (the public
 namespace). A module imports only from its own layer or an earlier one, at module level and
 inside functions alike; the one exception is the CLI's lazy imports inside its functions (a fast
@@ -16,7 +17,7 @@ import diffguide
 
 PACKAGE = Path(diffguide.__file__).parent
 LAYERS = ("_core", "contact", "guideway", "fe", "machine", "inverse", "studies", "io",
-          "plotting", "cli", "__main__", "presets", "__init__")
+          "plotting", "jobs", "cli", "__main__", "presets", "__init__")
 RANK = {name: i for i, name in enumerate(LAYERS)}
 
 

@@ -276,7 +276,7 @@ def test_profile_settings_bind_to_their_profile():
     only the files read through it; unqualified, it is refused naming the choice."""
     import argparse
 
-    from diffguide.cli.import_ import load_profile_args
+    from diffguide.jobs.inputs import load_profile_args
 
     def profiles(names, sets):
         return load_profile_args(argparse.Namespace(profile=names, profile_set=sets),

@@ -105,7 +105,7 @@ _LAZY = {
 
 __all__ = list(_LAZY)
 #: the subpackages and modules, imported on first attribute access (``diffguide.presets``)
-_SUBMODULES = ("cli", "contact", "fe", "guideway", "inverse", "io", "machine", "plotting",
+_SUBMODULES = ("cli", "contact", "fe", "guideway", "inverse", "io", "jobs", "machine", "plotting",
                "presets", "studies")
 
 

@@ -104,14 +104,6 @@ def say(args, text: str) -> None:
         print(text, flush=True)
 
 
-def check_tolerances(args) -> None:
-    """``--tol-um`` / ``--tol-urad`` (the compensation export's location warnings) must be
-    finite and > 0."""
-    for flag, tol in (("--tol-um", args.tol_um), ("--tol-urad", args.tol_urad)):
-        if not (math.isfinite(tol) and tol > 0):
-            raise ValueError(f"{flag} must be a finite number > 0, got {tol:g}")
-
-
 def machine_config(args) -> dict:
     """The validated configuration chosen by ``--config`` or ``--preset``."""
     from ..io.config import default_config, load_config

@@ -4,77 +4,9 @@
 import argparse
 import sys
 
+from ..jobs.inputs import load_profile_args
 from ._common import PRESETS
-
-
-def x0_value(text: str):
-    """``--x0-mm``'s value: a number (mm) or ``middle``."""
-    if text.strip().lower() == "middle":
-        return "middle"
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a number (mm) or 'middle', got {text!r}") from None
-
-
-def profile_sets(items, profiles=()) -> dict:
-    """``--profile-set [PROFILE:]KEY=VALUE`` items as ``{profile or None: {key: value}}``
-    (numbers read as numbers). A ``PROFILE:`` prefix binds the setting to the files read
-    through that ``--profile``; without it, the setting needs a single profile (``profiles``:
-    the distinct ``--profile`` values other than ``auto``), so that a setting meant for one
-    file never lands on another's."""
-    out: dict = {}
-    for item in items or []:
-        left, sep, value = item.partition("=")
-        prof, colon, key = left.rpartition(":")
-        if not sep or not key.strip():
-            raise ValueError(f"--profile-set {item!r}: expected [PROFILE:]KEY=VALUE (a "
-                             "[reading] key of the profile, e.g. point=P5 or exx:point=P5)")
-        target = prof.strip() if colon else None
-        if target is not None and target not in profiles:
-            raise ValueError(f"--profile-set {item!r}: {target!r} is not one of the --profile "
-                             f"options ({', '.join(profiles) or 'none'})")
-        if target is None and len(profiles) > 1:
-            raise ValueError(
-                f"--profile-set {item!r}: the files are read through {len(profiles)} profiles "
-                f"({', '.join(profiles)}); say which one it is for: --profile-set "
-                f"{profiles[-1]}:{left.strip()}={value.strip()}")
-        try:
-            parsed: float | str = float(value)
-        except ValueError:
-            parsed = value.strip()
-        out.setdefault(target, {})[key.strip()] = parsed
-    return out
-
-
-def add_input_options(p, several: str) -> None:
-    """The options that say how measurement files are read (import and fit share them)."""
-    p.add_argument("--profile", metavar="NAME|FILE.toml", action="append", default=None,
-                   help="read the file(s) through a profile: a built-in one ("
-                   "exx, iso230-2-summary, 6dof, long, wide) or a TOML file mapping a vendor's "
-                   "table onto the readings (README 'File formats', docs/file-formats.md); "
-                   "once for every file, or once per file in their order ('auto': that file "
-                   "in a canonical layout); default: the canonical long/wide layouts, detected")
-    p.add_argument("--profile-set", metavar="[PROFILE:]KEY=VALUE", action="append",
-                   default=None,
-                   help="set a [reading] key of the profile (repeatable), e.g. point=P5, "
-                   "x_mm=0, sign=-1; with several --profile options, name the one it is for: "
-                   "exx:point=P5 (it applies to the files read through that profile only)")
-    p.add_argument("--accept-file-conflicts", action="store_true",
-                   help="merge files that read a channel with opposite signs (refused by "
-                   "default, naming both: a reversed sensor), each conflict then a note")
-    p.add_argument("--encoding", default=None, metavar="NAME",
-                   help="text encoding of the file(s): utf-8, utf-16, cp1252, latin-1 or any "
-                   "Python codec name; default: the profile's, else detected (byte-order mark, "
-                   "UTF-16's NUL bytes, UTF-8, else cp1252)")
-    p.add_argument("--x0-mm", type=x0_value, default=None, metavar="MM|middle",
-                   help="machine coordinate (mm) of the table position x = 0 (the model's "
-                   "reference, mid-stroke) in the measurement file(s): x = position - x0; "
-                   "'middle': the middle of the measured targets" + several + "; default: the "
-                   "file's own statement (a wide file's x0_mm line, a profile's x0_mm), else 0 "
-                   "in every layout (fit: also the compensation table's x0 unless "
-                   "--machine-x0-mm; simulate's --x0-mm only places its compensation table)")
+from ._input_options import add_input_options
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -123,35 +55,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
     return p
-
-
-def load_profile_args(args, files):
-    """The profile of each file in ``files`` (``--profile``, once or once per file, with
-    ``--profile-set`` applied; ``None``: a canonical layout)."""
-    from ..io.profiles import check_profile, load_profile
-
-    names = args.profile or []
-    if not names:
-        if args.profile_set:
-            raise ValueError("--profile-set needs --profile")
-        return [None] * len(files)
-    if len(names) not in (1, len(files)):
-        raise ValueError(f"{len(names)} --profile options for {len(files)} files (allowed: one "
-                         "for every file, or one per file in their order)")
-    used = [n for n in dict.fromkeys(names) if n != "auto"]
-    sets = profile_sets(args.profile_set, used)
-    loaded = {}
-    for name in dict.fromkeys(names):
-        if name == "auto":
-            loaded[name] = None
-            continue
-        prof = load_profile(name)
-        mine = {**sets.get(None, {}), **sets.get(name, {})}
-        if mine:
-            prof.setdefault("reading", {}).update(mine)
-            check_profile(prof, f"{prof['_source']} with --profile-set")
-        loaded[name] = prof
-    return [loaded[n] for n in (names * len(files) if len(names) == 1 else names)]
 
 
 def explain_lines(infos) -> list[str]:

@@ -318,7 +318,7 @@ def _family(args, cfg, spec, sites, n_candidates, instruments):
     the options say) and its priors, after a line saying what is planned."""
     from ..inverse import MachineFamily
     from ..io.table_source import config_machine
-    from .fit import structure_priors
+    from ..jobs.fit import structure_priors
 
     priors = structure_priors(
         argparse.Namespace(
@@ -352,7 +352,7 @@ def run(args) -> int:
     from ..io.plan_files import plan_csv, plan_report
     from ._common import machine_config
     from ._outputs import write_dir
-    from .fit import _jsonable
+    from ..io.fit_report import jsonable as _jsonable
 
     t_start = time.perf_counter()
     _check(args)

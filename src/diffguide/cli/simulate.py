@@ -5,15 +5,9 @@ import argparse
 import numpy as np
 
 from .._core.limits import MAX_MESH_DIVISIONS, MAX_POSITIONS, check_range
-from ._common import PRESETS, add_machine_arguments, check_tolerances, machine_config
-from ._export_options import (
-    AXIS_SIDE_HELP,
-    FORMAT_HELP,
-    FORMATS,
-    add_controller_options,
-    check_export,
-    export_spec,
-)
+from ..jobs.export import check_export, check_tolerances, export_spec
+from ._common import PRESETS, add_machine_arguments, machine_config
+from ._export_options import AXIS_SIDE_HELP, FORMAT_HELP, FORMATS, add_controller_options
 from .simulate_cross import CROSS_PRESET, is_cross, run_cross
 
 

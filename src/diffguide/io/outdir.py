@@ -141,10 +141,12 @@ class OutputFolder:
             shutil.rmtree(self.tmp, ignore_errors=True)
 
     def write(self, files: dict[str, object], dpi: int = 110) -> None:
-        """``files``: {name: text or matplotlib figure}."""
+        """``files``: {name: text, bytes or matplotlib figure}."""
         for name, content in files.items():
             if isinstance(content, str):
                 (self.tmp / name).write_text(content, encoding="utf-8")
+            elif isinstance(content, bytes):
+                (self.tmp / name).write_bytes(content)
             else:
                 content.savefig(self.tmp / name, dpi=dpi)
 
