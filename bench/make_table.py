@@ -19,7 +19,6 @@ import argparse
 import datetime
 import os
 import platform
-import re
 import sys
 from pathlib import Path
 
@@ -30,17 +29,7 @@ BEGIN, END = "<!-- BENCH-TABLE -->", "<!-- /BENCH-TABLE -->"
 
 sys.path.insert(0, str(HERE))
 import bench_cli  # noqa: E402
-
-
-def cpu_model() -> str:
-    """The CPU's model name (Linux ``/proc/cpuinfo``), else ``platform.processor()``."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.lower().startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
+from pages import cpu_model, write_between  # noqa: E402
 
 
 def versions() -> str:
@@ -104,16 +93,6 @@ def main(argv=None):
     )
     write_between(a.page, BEGIN, END, table)
     print(table)
-
-
-def write_between(page: Path, begin: str, end: str, block: str) -> None:
-    """Replace the text of ``page`` from the marker ``begin`` to ``end`` (both included; the
-    ``block`` carries them) by ``block``; exit naming the page if the markers are missing."""
-    text = page.read_text(encoding="utf-8")
-    pattern = re.compile(re.escape(begin) + ".*?" + re.escape(end), re.S)
-    if not pattern.search(text):
-        sys.exit(f"{page}: no {begin} ... {end} markers")
-    page.write_text(pattern.sub(lambda _: block, text), encoding="utf-8")
 
 
 if __name__ == "__main__":

@@ -61,7 +61,7 @@ def per_battery_case(log: str) -> dict[str, float]:
 
 
 def render(seconds: dict[str, float], summary: str, source: str) -> str:
-    from make_table import cpu_model
+    from pages import cpu_model
 
     total = sum(seconds.values())
     rows = sorted(seconds.items(), key=lambda kv: -kv[1])
@@ -91,7 +91,7 @@ def main(argv=None):
     seconds, summary = per_module(a.log.read_text(encoding="utf-8", errors="replace"))
     table = render(seconds, summary, a.log.name)
     if not a.print:
-        from make_table import write_between
+        from pages import write_between
 
         write_between(a.page, BEGIN, END, table)
     print(table)

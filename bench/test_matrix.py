@@ -155,7 +155,7 @@ def main(argv=None):
                         datetime.date.today().isoformat())
         parts.append(render_matrix(rows))
     if not a.print:
-        from make_table import write_between
+        from pages import write_between
 
         write_between(a.page, *COUNTS, parts[0])
         if a.log:
