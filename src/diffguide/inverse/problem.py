@@ -51,6 +51,11 @@ _STRAIGHTNESS = (QUANTITIES.index("EYX"), QUANTITIES.index("EZX"))
 _RUNTIME_ERRORS = (eqx.EquinoxRuntimeError, jax.errors.JaxRuntimeError)
 
 
+#: Per plane (vertical, horizontal), whether every fit fixes the common slope of both rails at
+#: zero: it is invisible (pitch and yaw are relative to their reference position, and a
+#: straightness channel's slope is its alignment, fitted).
+FIX_SLOPE = (True, True)
+
 class FitProblem(eqx.Module):
     """One fit's data, model, prior and gauge (host-side arrays; never traced itself).
 
@@ -210,9 +215,7 @@ def build_problem(machine, meas: Measurements, *, knot_spacing: float | None,
     _check_priors(family)
     basis = RailBasis.covering(*visited_range(base, meas.position), knot_spacing, joints,
                                joint_width)
-    # the common slope of both rails in a plane is invisible: pitch and yaw are relative to
-    # their reference position, and a straightness channel's slope is its alignment (fitted)
-    fix_slope = (True, True)
+    fix_slope = FIX_SLOPE
     C, gauge = basis.gauge_functionals(fix_slope)
     Z = null_space_basis(C, basis.size)
     G2, G0 = basis.penalty_factor() @ Z, basis.amplitude_factor() @ Z

@@ -115,9 +115,11 @@ def common_slope_note(fit, x_mm, x0_mm: float = 0.0) -> tuple[str, ...]:
     :class:`~diffguide.inverse.predict.FitPosterior`: no alignment slopes then). x_mm: the table's positions (mm,
     x = 0 the reference). x0_mm: the machine coordinate of x = 0 (mm).
     """
+    from ..inverse.problem import FIX_SLOPE
+
     # a FitPosterior (predict's, read back from posterior.json) holds neither: every fit fixes
-    # both planes' common slope (inverse.problem) and its alignment slopes are in report.json
-    fix_slope = getattr(fit, "fix_slope", (True, True))
+    # the common slopes of FIX_SLOPE, and its alignment slopes are in report.json
+    fix_slope = getattr(fit, "fix_slope", FIX_SLOPE)
     planes = [f"{e} ({p} plane)" for (p, e), fixed in zip(_PLANES, fix_slope) if fixed]
     if not planes:
         return ()
