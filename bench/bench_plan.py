@@ -23,7 +23,7 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 from diffguide.inverse import MachineFamily, Prior, StructurePriors  # noqa: E402
-from diffguide.inverse.plan import Instrument, build_planner, grid_sites  # noqa: E402
+from diffguide.planning import Instrument, build_planner, grid_sites  # noqa: E402
 from diffguide.machine.majda2012 import majda2012_machine  # noqa: E402
 
 

@@ -39,7 +39,7 @@ channel's free zero projected out and whitened by the merged σ of 5 runs in bot
 The prior is stated physically: rails of 1 µm RMS. The table's structure is unknown (the
 `diffguide fit` default priors), and since its effect grows with the rails, the experiment is
 linearised at a few rails drawn from that prior. Placements are added greedily, each the one
-that lowers the **largest profile σ over the rail length** most (`diffguide.inverse.plan`).
+that lowers the **largest profile σ over the rail length** most (`diffguide.planning`).
 """),
     code("""
 import jax
@@ -49,7 +49,7 @@ import time
 import numpy as np
 import matplotlib.pyplot as plt
 from diffguide.inverse import MachineFamily, Prior, StructurePriors
-from diffguide.inverse.plan import Instrument, build_planner, grid_sites
+from diffguide.planning import Instrument, build_planner, grid_sites
 from diffguide.machine.majda2012 import majda2012_machine
 from diffguide.io.config import default_config
 from diffguide.plotting.plan import plot_plan_sigma, plot_plan_sites

@@ -1,7 +1,7 @@
 """The fit's predicted σ for a measurement plan as a design objective
 (:mod:`diffguide.studies.design_plan`, ``diffguide design --objective plan:…``).
 
-Its value against the measurement planner's (:func:`~diffguide.inverse.planner.build_planner`:
+Its value against the measurement planner's (:func:`~diffguide.planning.planner.build_planner`:
 another formulation — the numpy posterior of eigen-factored blocks from the planner's own
 Jacobian over every site); its derivatives w.r.t. every design variable (thickness, carriage and
 rail spacing, preload, modulus) against central differences of *rebuilt* machines; a design's
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from diffguide.cli import main
-from diffguide.inverse.instruments import Instrument, bundled_layout_mm
-from diffguide.inverse.planner import build_planner
+from diffguide.planning.instruments import Instrument, bundled_layout_mm
+from diffguide.planning.planner import build_planner
 from diffguide.io.config import default_config, spec_from_config
 from diffguide.machine.build import build_machine, with_overrides
 from diffguide.studies.design import design, parse_objective

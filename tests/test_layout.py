@@ -1,9 +1,8 @@
 """The package layout: the layers in one order, every import going down it.
 
-``_core -> contact -> guideway -> fe -> machine -> inverse -> studies -> io -> plotting -> jobs
--> cli``,
-then ``__main__`` (``python -m diffguide``: the CLI's entry), ``presets`` (data the CLI and users choose) and the root ``__init__`` (the public
-namespace). A module imports only from its own layer or an earlier one, at module level and
+``_core -> contact -> guideway -> fe -> machine -> inverse -> planning -> studies -> io ->
+plotting -> jobs -> cli``, then ``__main__`` (``python -m diffguide``: the CLI's entry),
+``presets`` (data the CLI and users choose) and the root ``__init__`` (the public namespace). A module imports only from its own layer or an earlier one, at module level and
 inside functions alike; the one exception is the CLI's lazy imports inside its functions (a fast
 ``--help``). Nothing in the library imports ``presets``.
 """
@@ -16,7 +15,7 @@ from pathlib import Path
 import diffguide
 
 PACKAGE = Path(diffguide.__file__).parent
-LAYERS = ("_core", "contact", "guideway", "fe", "machine", "inverse", "studies", "io",
+LAYERS = ("_core", "contact", "guideway", "fe", "machine", "inverse", "planning", "studies", "io",
           "plotting", "jobs", "cli", "__main__", "presets", "__init__")
 RANK = {name: i for i, name in enumerate(LAYERS)}
 

@@ -38,7 +38,7 @@ from diffguide.cli import main
 from diffguide.guideway.rails import SplineRail
 from diffguide.inverse import fit_rails
 from diffguide.inverse.data import QUANTITIES, Measurements
-from diffguide.inverse.plan import Instrument, build_planner, expected_rms_lambda, grid_sites, plan
+from diffguide.planning import Instrument, build_planner, expected_rms_lambda, grid_sites, plan
 from diffguide.machine.kinematics import joint_errors
 
 #: Candidate sites: 5 × 3 over the table top, 50 mm inside the edges — it holds the bundled
@@ -334,8 +334,8 @@ def test_cli_writes_the_plan_and_refuses_bad_input(tmp_path, capsys):
 
 def test_the_cli_offers_what_the_planner_models():
     """``diffguide plan`` keeps its own table of who reads what (the parser must not import
-    JAX); it is the planner's :data:`~diffguide.inverse.plan.KINDS`, kind for kind."""
+    JAX); it is the planner's :data:`~diffguide.planning.KINDS`, kind for kind."""
     from diffguide.cli.plan import QUANTITY_CHOICES
-    from diffguide.inverse.plan import KINDS
+    from diffguide.planning import KINDS
 
     assert QUANTITY_CHOICES == KINDS

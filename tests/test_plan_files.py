@@ -2,7 +2,7 @@
 
 import pytest
 
-from diffguide.inverse.instruments import grid_sites
+from diffguide.planning.instruments import grid_sites
 from diffguide.io.plan_files import read_placements, read_sites
 
 TABLE = (1000.0, 500.0)  # mm

@@ -5,7 +5,8 @@ joint kinematic errors at points on the table (ISO 230-1), and back. SI units in
 
 The layers, in data-flow order (each a subpackage; everything public is re-exported here):
 :mod:`.contact` (contact laws) -> :mod:`.guideway` (rails, carriages) -> :mod:`.fe` (the table)
--> :mod:`.machine` (equilibrium, joint errors) -> :mod:`.inverse` (identification);
+-> :mod:`.machine` (equilibrium, joint errors) -> :mod:`.inverse` (identification) ->
+:mod:`.planning` (measurement planning);
 :mod:`.studies` (Monte Carlo, sensitivity, compensation) use them; :mod:`.io`, :mod:`.plotting`
 and :mod:`.cli` are the edge. ``presets`` names the built-in machines and parts.
 
@@ -53,7 +54,7 @@ _LAZY = {
     "MachineFamily": ".inverse",
     "Prior": ".inverse",
     "StructurePriors": ".inverse",
-    "plan": ".inverse.plan",
+    "plan": ".planning",
     "default_config": ".io",
     "load_config": ".io",
     "read_rails_csv": ".io",
@@ -105,8 +106,8 @@ _LAZY = {
 
 __all__ = list(_LAZY)
 #: the subpackages and modules, imported on first attribute access (``diffguide.presets``)
-_SUBMODULES = ("cli", "contact", "fe", "guideway", "inverse", "io", "jobs", "machine", "plotting",
-               "presets", "studies")
+_SUBMODULES = ("cli", "contact", "fe", "guideway", "inverse", "io", "jobs", "machine", "planning",
+               "plotting", "presets", "studies")
 
 
 def __getattr__(name: str):

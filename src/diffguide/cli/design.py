@@ -116,7 +116,7 @@ def _check(args) -> None:
 def measurement_plan(args, cfg, positions):
     """The :class:`~diffguide.studies.design_plan.MeasurementPlan` of ``--plan``,
     ``--plan-runs``, ``--work-point``/``--work-reads``, ``--rail-rms-um`` at ``positions`` (m)."""
-    from ..inverse.instruments import bundled_layout_mm
+    from ..planning.instruments import bundled_layout_mm
     from ..io.plan_files import read_placement_rows
     from ..studies.design_plan import MeasurementPlan
     from .plan import parse_work_point

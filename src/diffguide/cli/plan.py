@@ -8,7 +8,7 @@ import numpy as np
 
 from ._common import say
 
-#: What each kind reads: :data:`diffguide.inverse.plan.KINDS`, restated so that parsing the
+#: What each kind reads: :data:`diffguide.planning.KINDS`, restated so that parsing the
 #: command line does not import JAX (a test asserts they agree).
 QUANTITY_CHOICES = {
     "level": ("EBX", "EAX"),
@@ -202,7 +202,7 @@ def _table_mm(cfg) -> tuple[float, float]:
 
 def _sites(args, cfg) -> dict:
     """Candidate sites ``{name: (x, y)}`` (m): ``--sites`` or the ``--grid``."""
-    from ..inverse.instruments import grid_sites
+    from ..planning.instruments import grid_sites
     from ..io.plan_files import read_sites
     from ._common import parse_mesh_text
 
@@ -238,7 +238,7 @@ def _start_and_compare(args, cfg, sites):
 
 def parse_work_point(text: str, table_mm) -> tuple[float, float]:
     """``--work-point X,Y`` (mm), checked to lie on the ``table_mm = (length, width)`` top."""
-    from ..inverse.instruments import check_on_table
+    from ..planning.instruments import check_on_table
 
     try:
         wx, wy = (float(v) for v in text.split(","))
@@ -263,7 +263,7 @@ def _work_point(args, cfg, sites):
 
 
 def _instruments(args):
-    from ..inverse.plan import Instrument
+    from ..planning import Instrument
 
     out = []
     for kind, count, sig, reads in (
@@ -347,7 +347,7 @@ def _family(args, cfg, spec, sites, n_candidates, instruments):
 
 
 def run(args) -> int:
-    from ..inverse.plan import plan
+    from ..planning import plan
     from ..io.config import spec_from_config
     from ..io.plan_files import plan_csv, plan_report
     from ._common import machine_config

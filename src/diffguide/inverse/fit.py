@@ -101,14 +101,11 @@ from .._core.precision import require_x64
 from ..guideway.rails import JOINT_WIDTH
 from .basis import PLANES, PROFILES, RailBasis
 from .data import Measurements
-from .model import _model as _model
 from .posterior import SECANT_STEP_LIMITS as SECANT_STEP_LIMITS
 from .posterior import Posterior, posterior
 from .problem import LEAD_KNOT_SPACING as LEAD_KNOT_SPACING
 from .problem import LEAD_RIDGE as LEAD_RIDGE
 from .problem import FitProblem, build_problem
-from .problem import _as_family as _as_family
-from .problem import _problem as _problem
 from .problem import visited_range as visited_range
 from .solve import OUTLIER_Z as OUTLIER_Z
 from .solve import FitState, solve_linear, solve_lm, start

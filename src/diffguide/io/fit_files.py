@@ -5,7 +5,7 @@ planner's format). SI inside; mm and µm (or the reading's own unit) in the file
 import numpy as np
 
 from ..inverse.data import QUANTITIES
-from ..inverse.plan import KINDS
+from ..planning.instruments import KINDS
 from .measurements import ANGULAR_UNITS, LINEAR_UNITS, format_csv
 
 #: Spacing (mm) of the ``s`` grid of ``rails.csv`` and the figures.

@@ -8,7 +8,7 @@ Sites CSV: ``name,x_mm,y_mm``. Placements CSV: ``instrument,x_mm,y_mm[,point][,r
 
 import numpy as np
 
-from ..inverse.instruments import KINDS, bundled_layout_mm, check_on_table, place_on_sites
+from ..planning.instruments import KINDS, bundled_layout_mm, check_on_table, place_on_sites
 from .csvtable import number, read_table
 
 
@@ -68,7 +68,7 @@ def read_placement_rows(path, table_mm) -> list[tuple[str, float, float]]:
 
 def read_placements(which, option, table_mm, sites: dict) -> list[tuple[str, str]]:
     """A plan given as ``"bundled"`` or a placements CSV, as ``(kind, site)``, adding its sites
-    to ``sites`` where new (:func:`~diffguide.inverse.instruments.place_on_sites`); ``option``
+    to ``sites`` where new (:func:`~diffguide.planning.instruments.place_on_sites`); ``option``
     names the command-line option in errors."""
     if which == "bundled":
         rows, where = bundled_layout_mm(*table_mm), "bundled layout"
@@ -78,7 +78,7 @@ def read_placements(which, option, table_mm, sites: dict) -> list[tuple[str, str
 
 
 def plan_csv(result) -> str:
-    """``plan.csv``: the greedy steps of a :class:`~diffguide.inverse.plan.Plan` in order, what
+    """``plan.csv``: the greedy steps of a :class:`~diffguide.planning.Plan` in order, what
     each bought (criterion before and after, worst and RMS profile σ in µm)."""
     crit = result.criterion
     unit = "nats" if crit == "D" else "um"
@@ -96,7 +96,7 @@ def plan_csv(result) -> str:
 
 
 def evaluation_json(ev, sites) -> dict:
-    """An :class:`~diffguide.inverse.design.Evaluation` as the report's JSON fields (µm, mm)."""
+    """An :class:`~diffguide.planning.Evaluation` as the report's JSON fields (µm, mm)."""
     return {
         "placements": [
             {"instrument": k, "site": s, "x_mm": sites[s][0] * 1e3, "y_mm": sites[s][1] * 1e3}

@@ -2,7 +2,7 @@ r"""The fit's predicted σ for a measurement plan as a design objective: how wel
 (instruments at stated places on the table, read at stated positions) will determine the rails
 of a machine, as a differentiable function of the machine's design.
 
-**The criterion** is the measurement planner's (:mod:`~diffguide.inverse.plan`) with the
+**The criterion** is the measurement planner's (:mod:`~diffguide.planning.plan`) with the
 structure known (the design fixes the table and the preload): for the design ``x`` the model's
 Jacobian w.r.t. the gauge-fixed rail coefficients ``θ`` (µm) at straight rails, ``J_c(x)``, one
 block per channel ``c`` (placement and quantity) over the positions, each channel's zero (and a
@@ -11,7 +11,7 @@ straightness channel's alignment slope) projected out and whitened by the merged
 
 .. math::  H(x) = λΩ + \sum_c J_c(x)^T J_c(x),\qquad \mathrm{Cov}_θ = H(x)^{-1},
 
-``λΩ`` the prior of an expected rail RMS ``ρ`` (:func:`~diffguide.inverse.planner.rail_prior`).
+``λΩ`` the prior of an expected rail RMS ``ρ`` (:func:`~diffguide.planning.planner.rail_prior`).
 The objective is then
 
 - ``plan:A``: the RMS σ of the four gauge-fixed profiles over the basis length,
@@ -21,8 +21,8 @@ The objective is then
   :math:`\sqrt{\max \mathrm{diag}(J_w H^{-1} J_w^T)}` (m or rad), ``J_w`` the work point's
   rows (not centred: the prediction's own zero is the model's).
 
-``W`` samples the profiles (:data:`~diffguide.inverse.design.N_S` per profile) in the one gauge
-the planner reports every plan in (:func:`~diffguide.inverse.planner.gauge_projector`). The rail
+``W`` samples the profiles (:data:`~diffguide.planning.design.N_S` per profile) in the one gauge
+the planner reports every plan in (:func:`~diffguide.planning.planner.gauge_projector`). The rail
 basis is fixed for the whole design: it covers what the rolling elements visit over the
 positions at the widest carriage spacing of the bounds, so every design is judged on the same
 unknowns (a narrower design leaves the ends to the prior, and its σ says so).
@@ -43,13 +43,13 @@ import numpy as np
 
 from ..inverse.basis import RailBasis
 from ..inverse.data import QUANTITIES, Measurements
-from ..inverse.design import N_S
-from ..inverse.instruments import Instrument
 from ..inverse.model import _model
-from ..inverse.planner import rail_prior
 from ..inverse.problem import _as_family, _problem, visited_range
 from ..machine.build import build_machine, with_overrides
 from ..machine.spec import MachineSpec
+from ..planning.design import N_S
+from ..planning.instruments import Instrument
+from ..planning.planner import rail_prior
 from .design_space import apply_all
 
 #: The planner criteria a design can minimise (``plan:CRITERION``).
@@ -68,9 +68,9 @@ class MeasurementPlan:
         positions: table positions read (m), at least 4 distinct.
         runs: runs per direction. bidirectional: forward and backward runs.
         sigma: σ of one reading per kind (rad, or m for straightness); missing kinds take
-            :data:`~diffguide.inverse.instruments.DEFAULT_READING_SIGMA`.
+            :data:`~diffguide.planning.instruments.DEFAULT_READING_SIGMA`.
         reads: the quantities one placement of a kind reads; missing kinds read all of
-            :data:`~diffguide.inverse.instruments.KINDS` ``[kind]``.
+            :data:`~diffguide.planning.instruments.KINDS` ``[kind]``.
         rail_rms: expected RMS of the gauge-fixed rail profiles (m; the prior).
         work_point: ``(x, y, quantities)`` for ``plan:work`` (m), or None.
     """

@@ -14,10 +14,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.precision import require_x64
-from .basis import PROFILES, RailBasis, null_space_basis
-from .data import QUANTITIES, Measurements
+from ..inverse.basis import PROFILES, RailBasis, null_space_basis
+from ..inverse.data import QUANTITIES, Measurements
+from ..inverse.model import _model
+from ..inverse.problem import _as_family, _problem, visited_range
 from .design import N_S, Evaluation, check_placements, evaluate, information
-from .fit import _as_family, _model, _problem, visited_range
 from .greedy import Step, greedy
 from .instruments import Instrument, Placement
 
@@ -33,15 +34,16 @@ class Planner:
     computed it.
 
     Attributes:
-        family: the :class:`~.structure.MachineFamily`. sites: ``{name: (x, y)}`` (m), every
+        family: the :class:`~diffguide.inverse.MachineFamily`. sites: ``{name: (x, y)}`` (m), every
             point of the machine. candidates: the sites the greedy may use.
         instruments: the :class:`~.instruments.Instrument` types. positions: the distinct table
             positions read (m). readings: readings per position (runs × directions).
         work_point: ``(site, quantities)`` or None.
-        basis: the rails' :class:`~.basis.RailBasis`. fix_slope, gauge: its gauge (as
-            :func:`~.fit.fit_rails` with straightness data). Z: gauge-fixed coefficients
-            ``c = Zθ``. Omega: the prior's ``Ω``. Pi: the common gauge ``Π`` of the reported
-            profiles. lam: the prior's weight λ. rail_rms: the expected rail RMS it came from (m).
+        basis: the rails' :class:`~diffguide.inverse.RailBasis`. fix_slope, gauge: its gauge (as
+            :func:`~diffguide.inverse.fit_rails` with straightness data). Z: gauge-fixed
+            coefficients ``c = Zθ``. Omega: the prior's ``Ω``. Pi: the common gauge ``Π`` of the
+            reported profiles. lam: the prior's weight λ. rail_rms: the expected rail RMS it came
+            from (m).
         P: prior precision of ``(θ, q)``. raw: ``{(site, quantity): ∂E/∂(θ, q)}`` per position
             at straight rails. mixed: ``{(site, quantity, k): D_k}``, ``∂²E/∂q_k∂θ``.
         draws: the prior rail draws ``θ_d``, ``(n_draws, n_theta)``.
@@ -188,9 +190,9 @@ def _checked_inputs(base, instruments, positions, runs, bidirectional, candidate
 
 
 def rail_prior(basis: RailBasis, rail_rms: float, n_q: int) -> dict:
-    """The gauge (both slopes fixed, as :func:`~.fit.fit_rails` with straightness data), ``Z``,
-    ``Ω = Zᵀ(Ω_curv + Ω_amp)Z``, the reporting gauge ``Π``, λ from the expected RMS and the
-    prior precision ``P = diag(λΩ, I)``."""
+    """The gauge (both slopes fixed, as :func:`~diffguide.inverse.fit_rails` with straightness
+    data), ``Z``, ``Ω = Zᵀ(Ω_curv + Ω_amp)Z``, the reporting gauge ``Π``, λ from the expected RMS
+    and the prior precision ``P = diag(λΩ, I)``."""
     fix_slope = (True, True)  # as in fit_rails: straightness has a free slope
     C, gauge = basis.gauge_functionals(fix_slope)
     Z = null_space_basis(C, basis.size)
@@ -355,15 +357,17 @@ def build_planner(
     """The linearised experiment over all candidate placements (:mod:`.plan`).
 
     Arguments:
-        machine: a :class:`~diffguide.machine.Machine` or a :class:`~.structure.MachineFamily`
-            (structure unknown) whose points include every site named below.
+        machine: a :class:`~diffguide.machine.Machine` or a
+            :class:`~diffguide.inverse.MachineFamily` (structure unknown) whose points include
+            every site named below.
         instruments: the instrument types (:class:`~.instruments.Instrument`).
         positions: table positions read (m). runs: runs per direction. bidirectional: forward
             and backward runs (else forward only).
         rail_rms: expected RMS of the gauge-fixed rail profiles (m), sets λ.
         candidates: the candidate sites' names (default every point of the machine).
         work_point: ``(site name, quantities)`` for the ``"work"`` criterion (optional).
-        knot_spacing: as :func:`~.fit.fit_rails` (m; default the carriage's loaded length).
+        knot_spacing: as :func:`~diffguide.inverse.fit_rails` (m; default the carriage's loaded
+            length).
         x_ref: reference position (m).
         n_draws: rails drawn from the prior at which the experiment is linearised (the
             structure's information and its coupling to the rails; :mod:`.plan`).

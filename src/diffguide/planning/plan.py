@@ -4,9 +4,10 @@ determine the rails (and the table's structure) — before anything is measured.
 **The linearised experiment.** Every candidate *placement* is an instrument (a level reading
 pitch and/or roll, an angular interferometer reading pitch and/or yaw, straightness optics
 reading EYX/EZX) at a candidate *site* ``(x, y)`` on the table top, read at the table positions
-``x_1 … x_n`` with ``runs`` runs per direction. One forward-mode Jacobian of the model (the same
-:func:`~.fit._model` the fit evaluates, every equilibrium differentiated implicitly) at straight
-rails and the prior structure gives each candidate channel ``c`` (site, quantity) its rows
+``x_1 … x_n`` with ``runs`` runs per direction. One forward-mode Jacobian of the model (the
+same :func:`~diffguide.inverse.model._model` the fit evaluates, every equilibrium differentiated
+implicitly) at straight rails and the prior structure gives each candidate channel ``c`` (site,
+quantity) its rows
 
 .. math::  J_c = \frac{1}{σ_c}\,(I - \tfrac{1}{n}\mathbf 1\mathbf 1^T)\,
            \frac{∂E_c(x_1 … x_n)}{∂(θ, q)},\qquad σ_c = \frac{σ_{reading}}{\sqrt{runs ·
@@ -14,20 +15,20 @@ rails and the prior structure gives each candidate channel ``c`` (site, quantity
 
 with the channel's free zero projected out (the fit profiles each channel's zero out; for a
 straightness channel its alignment slope too, ``1`` then spanning ``1`` and ``x − x̄``) and ``σ_c``
-the merged σ :func:`~.merge.merge_readings` gives ``runs·directions`` readings of
+the merged σ :func:`~diffguide.inverse.merge.merge_readings` gives ``runs·directions`` readings of
 σ ``σ_reading`` each. ``θ`` are the gauge-fixed rail coefficients (µm, ``c = Zθ``, as in
-:func:`~.fit.fit_rails`: the common slope of both planes is fixed, as straightness channels
-carry a free alignment slope) and ``q`` the structural unknowns scaled by their prior σ.
+:func:`~diffguide.inverse.fit_rails`: the common slope of both planes is fixed, as straightness
+channels carry a free alignment slope) and ``q`` the structural unknowns scaled by their prior σ.
 
-**The prior.** ``θ ~ N(0, (λΩ)⁻¹)``, ``Ω = Zᵀ(Ω_curv + Ω_amp)Z`` (:mod:`.basis`, ``κ = 1``), and
-``q ~ N(0, I)``. λ is set from a physically stated expected RMS ``ρ`` (µm) of the four
-gauge-fixed profiles over the visited length ``L``:
+**The prior.** ``θ ~ N(0, (λΩ)⁻¹)``, ``Ω = Zᵀ(Ω_curv + Ω_amp)Z``
+(:mod:`~diffguide.inverse.basis`, ``κ = 1``), and ``q ~ N(0, I)``. λ is set from a physically
+stated expected RMS ``ρ`` (µm) of the four gauge-fixed profiles over the visited length ``L``:
 
 .. math::  ρ^2 = \frac{1}{4L}\,E\Bigl[\sum_k ∫ (Πe)_k^2\,ds\Bigr]
               = \frac{L^3}{4λ}\,\mathrm{tr}(A\,Ω^{-1}),\qquad A = (G_0 Π Z)^T(G_0 Π Z)
    \quad⇒\quad λ = \frac{L^3\,\mathrm{tr}(AΩ^{-1})}{4ρ^2},
 
-(``‖G₀c‖² = Σ∫e²ds / L⁴``, :meth:`~.basis.RailBasis.amplitude_factor`), so that
+(``‖G₀c‖² = Σ∫e²ds / L⁴``, :meth:`~diffguide.inverse.RailBasis.amplitude_factor`), so that
 ``fit_rails(..., lam=plan.lam)`` fits with exactly the planner's prior.
 
 **The structure.** At straight rails the data say nothing about the table's thickness or the
@@ -43,8 +44,8 @@ design), which is the expected squared error of a fit over truths from the prior
 ``P = diag(λΩ, I)``, ``Cov_d = H_d⁻¹`` — the fit's ``s²(JᵀJ + P)⁻¹`` at ``s = 1``. The profiles'
 σ are reported in **one gauge for every plan**, whatever it measures: each profile's mean and each
 plane's common least-squares slope removed (``Π`` below, what
-:meth:`~.basis.RailBasis.gauge_fix` does with both slopes fixed; for plans without straightness
-data it is the fit's own gauge), so the σ of different plans compare.
+:meth:`~diffguide.inverse.RailBasis.gauge_fix` does with both slopes fixed; for plans without
+straightness data it is the fit's own gauge), so the σ of different plans compare.
 
 **Criteria** (smaller is better):
 
@@ -76,20 +77,10 @@ channels (with their lead-error unknowns) — plan those with the fit itself.
 import dataclasses
 from collections.abc import Callable, Sequence
 
-from .design import CRITERIA as CRITERIA
-from .design import N_S as N_S
-from .design import Evaluation as Evaluation
-from .greedy import Step as Step
-from .instruments import DEFAULT_READING_SIGMA as DEFAULT_READING_SIGMA
-from .instruments import KINDS as KINDS
-from .instruments import Instrument as Instrument
-from .instruments import Placement as Placement
-from .instruments import grid_sites as grid_sites
-from .planner import STRUCTURE_STEP as STRUCTURE_STEP
-from .planner import Planner as Planner
-from .planner import build_planner as build_planner
-from .planner import expected_rms_lambda as expected_rms_lambda
-from .planner import gauge_projector as gauge_projector
+from .design import CRITERIA, Evaluation
+from .greedy import Step
+from .instruments import Instrument, Placement
+from .planner import Planner, build_planner
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,7 +136,7 @@ def plan(
     """Choose where to put the instruments (greedy, module docstring) and compare with a plan.
 
     Arguments:
-        machine: :class:`~diffguide.machine.Machine` or :class:`~.structure.MachineFamily`
+        machine: :class:`~diffguide.machine.Machine` or :class:`~diffguide.inverse.MachineFamily`
             (structure unknown, as ``diffguide fit`` estimates it) whose points are the
             candidate sites (and the work point, and the sites of ``compare``).
         positions: table positions read (m).
@@ -201,17 +192,3 @@ def plan(
         time.perf_counter() - t0,
     )
 
-
-__all__ = [
-    "CRITERIA",
-    "KINDS",
-    "Evaluation",
-    "Instrument",
-    "Plan",
-    "Planner",
-    "Step",
-    "build_planner",
-    "gauge_projector",
-    "grid_sites",
-    "plan",
-]
