@@ -46,7 +46,7 @@ STAGES = (
     ("  linearisations (all)", "diffguide.inverse.problem", "FitProblem.linearise"),
     ("  posterior and bands", "diffguide.inverse.fit", "posterior"),
     ("outputs: all", "diffguide.jobs.fit", "_outputs"),
-    ("  fit_report (identifiability, validity)", "diffguide.io.fit_report", "fit_report"),
+    ("  fit_report (identifiability, validity)", "diffguide.jobs.fit_summary", "fit_report"),
     ("  straightness draws", "diffguide.studies.straightness", "uncertain_straightness"),
     ("  waiting for the figures", "diffguide.plotting.render", "FigureWorker.wait"),
     ("  report.html", "diffguide.jobs.fit_report", "html_text"),
@@ -105,7 +105,7 @@ def stages(cache: str) -> None:
     import diffguide.cli.fit  # noqa: F401
     import diffguide.jobs.fit  # noqa: F401
     import diffguide.inverse  # noqa: F401 - what the command imports when it runs
-    import diffguide.io.fit_report  # noqa: F401
+    import diffguide.jobs.fit_summary  # noqa: F401
     import jax  # noqa: F401
 
     wall = {"imports": time.perf_counter() - t0}

@@ -192,7 +192,7 @@ def test_interferometer_only_writes_an_honest_report(tmp_path, capsys):
 def test_undetermined_lines():
     """The console's summary of the identifiability report: the bands per combination, and the
     short-wave note only when no waviness is stated."""
-    from diffguide.io.fit_report import undetermined_lines
+    from diffguide.io.report_text import undetermined_lines
 
     ident = {"wavelengths": [
         {"combination": "vertical mean ((rail 1 + rail 2)/2)",

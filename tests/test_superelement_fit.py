@@ -2,7 +2,7 @@
 and ``fit``'s structural unknown for it, a scale on its stiffness.
 
 The machine file's key is checked against the library's own import
-(:func:`diffguide.io.imported_machine`, which reads the description file directly), its errors
+(:func:`diffguide.machine.machine_from_imported` on the description file read directly), its errors
 by their wording; the stiffness scale against the closed form of a scaled stiffness
 (``K → sK``, ``r0 → r0/s``); the fit against data simulated on the example table made 1.5 times
 stiffer (the acceptance of the superelement issue: the scale within its 2σ of 1.5, the rails'
@@ -20,8 +20,10 @@ from diffguide.cli import main
 from diffguide.inverse import MachineFamily, Prior, StructurePriors
 from diffguide.inverse.settings import structure_priors
 from diffguide.io.config import default_config, explain_config, load_config
-from diffguide.io.superelement_file import imported_machine
-from diffguide.io.table_source import config_machine, retained_points
+from diffguide.io.superelement_file import load_imported_table
+from diffguide.io.table_source import retained_points
+from diffguide.jobs.machine import config_machine
+from diffguide.machine.imported import machine_from_imported
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "data" / "examples" / "superelement"
@@ -49,13 +51,14 @@ def plate_cfg():
 
 def test_simulate_on_the_imported_table_from_the_machine_file(tmp_path):
     """``simulate --config`` on the example machine file gives the joint errors of the machine
-    built by the library's reader of the description file, ``imported_machine``."""
+    built by the library's reader of the description file, ``machine_from_imported``."""
     out = tmp_path / "errors.csv"
     rc = main(["simulate", "--config", str(MACHINE), "--positions", "-350:350:5",
                "--out", str(out), "--quiet"])
     assert rc == 0
     rows = np.genfromtxt(out, delimiter=",", names=True, dtype=None, encoding="utf-8")
-    machine = imported_machine(dg.machine.majda2012_spec(), EXAMPLE / "plate.toml")
+    machine = machine_from_imported(dg.machine.majda2012_spec(),
+                                    load_imported_table(EXAMPLE / "plate.toml"))
     x = np.linspace(-0.35, 0.35, 5)
     ref = dg.joint_errors(machine, dg.paper_variant(1), x, 0.0)
     e = np.asarray(ref.user_units())  # (positions, points, 6): µm, µrad
@@ -311,7 +314,7 @@ def test_predict_on_the_imported_table(stiffer):
     fitted machine's joint errors), with a σ; a point the table did not retain is refused."""
     from diffguide.inverse.predict import predict
     from diffguide.io.config import spec_from_config
-    from diffguide.io.table_source import machine_builder
+    from diffguide.jobs.machine import machine_builder
 
     mk, cfg, fits = stiffer
     fit, spec = fits[0], spec_from_config(cfg)

@@ -32,7 +32,8 @@ import pytest
 import diffguide as dg
 from diffguide.fe.mesh import Rib
 from diffguide.fe.superelement import RetainedPoint
-from diffguide.io.superelement_file import imported_machine, load_imported_table
+from diffguide.io.superelement_file import load_imported_table
+from diffguide.machine.imported import machine_from_imported
 from diffguide.machine.imported import imported_table
 
 EXAMPLE = Path(__file__).parents[1] / "data" / "examples" / "superelement"
@@ -59,8 +60,8 @@ def example_machines(name):
     """(imported, native 40 x 20) machines of the example ``name``, built once."""
     if name not in _CACHE:
         spec = example_spec(name)
-        _CACHE[name] = (imported_machine(spec, EXAMPLE / f"{name}.toml"),
-                        dg.build_machine(spec, nx=40, ny=20))
+        table = load_imported_table(EXAMPLE / f"{name}.toml")
+        _CACHE[name] = (machine_from_imported(spec, table), dg.build_machine(spec, nx=40, ny=20))
     return _CACHE[name]
 
 
@@ -161,7 +162,7 @@ def test_ccx_rerun_coarse_deck(tmp_path):
     fz = [v for (n, d), v in zip(data.matrix.dofs, data.matrix.f) if d == 3]
     np.testing.assert_allclose(sum(fz), -7200 * 0.025 * 9.81, rtol=1e-5)
     spec = dg.machine.majda2012_spec()
-    m = imported_machine(spec, tmp_path / "plate.toml")
+    m = machine_from_imported(spec, data)
     assert m.table.K.shape == (30, 30)
 
 

@@ -60,7 +60,7 @@ _LAZY = {
     "read_rails_csv": ".io",
     "spec_from_config": ".io",
     "config_from_spec": ".io",
-    "config_machine": ".io",
+    "config_machine": ".jobs.machine",
     "Material": ".fe",
     "TableSpec": ".fe",
     "GuidewaySpec": ".machine",

@@ -186,7 +186,7 @@ def run(args) -> int:
 def _say_results(args, res, written, t_start) -> None:
     """The console's closing lines: truth scores, what the data do not determine (and the
     planner's command for it), the files, a warning when the fit did not converge."""
-    from ..io.fit_report import misfit_lines, undetermined_lines
+    from ..io.report_text import misfit_lines, undetermined_lines
     from ._report import say_straightness
 
     report, elastic = res.report, res.fits[""]

@@ -187,7 +187,7 @@ def study_setup(args, rms: float, say):
     study from its command line (:func:`add_study_arguments`): ``(name, machine, positions,
     model, knots)``."""
     from ..inverse.fit import visited_range
-    from ..io.table_source import config_machine
+    from ..jobs.machine import config_machine
     from ..studies.random_rails import GaussianRailModel, default_knots
     from ._common import machine_config
 

@@ -317,7 +317,7 @@ def _family(args, cfg, spec, sites, n_candidates, instruments):
     """The machine family over ``sites`` (structure unknown as ``diffguide fit`` has it, or as
     the options say) and its priors, after a line saying what is planned."""
     from ..inverse import MachineFamily
-    from ..io.table_source import config_machine
+    from ..jobs.machine import config_machine
     from ..jobs.fit import structure_priors
 
     priors = structure_priors(
@@ -352,7 +352,7 @@ def run(args) -> int:
     from ..io.plan_files import plan_csv, plan_report
     from ._common import machine_config
     from ._outputs import write_dir
-    from ..io.fit_report import jsonable as _jsonable
+    from ..io.report_text import jsonable as _jsonable
 
     t_start = time.perf_counter()
     _check(args)

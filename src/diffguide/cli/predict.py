@@ -130,12 +130,12 @@ def _positions_option(args) -> str:
 
 def _machine_spec(args, meta: dict):
     """The fitted machine's specification, its builder for ``predict`` (``None`` for the
-    plate; :func:`diffguide.io.table_source.machine_builder`) and a note of what changed in
+    plate; :func:`diffguide.jobs.machine.machine_builder`) and a note of what changed in
     it since the fit (None: nothing): the fit's machine file or preset, refused where it
     changed unless ``--accept-machine-change``."""
     from ..io.config import default_config, load_config, spec_from_config
     from ..io.fit_posterior import machine_changes
-    from ..io.table_source import machine_builder
+    from ..jobs.machine import machine_builder
 
     m = meta["machine"]
     what = f"machine file {m['config']}" if m.get("config") else f"preset {m['preset']}"

@@ -266,7 +266,7 @@ def run(args) -> int:
     from ..io.atomic import atomic_write_text  # here: --help imports no JAX
     from ..io.errors_csv import joint_errors_csv
     from ..io.rails_csv import read_rails_csv
-    from ..io.table_source import config_machine
+    from ..jobs.machine import config_machine
     from ..machine.majda2012 import paper_variant
 
     if is_cross(args):

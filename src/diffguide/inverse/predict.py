@@ -292,7 +292,7 @@ def predict(fit, spec, points, positions, *, measured_points: dict | None = None
         make_machine: ``make_machine(points, **kw)`` → the fitted machine with ``points``
             ``{name: (x, y)}`` (m) and the structure ``kw`` (``thickness``, ``preload_fraction``,
             ``stiffness_scale``); needed for a table imported from an FE model
-            (:func:`diffguide.io.table_source.config_machine`), whose points must be retained
+            (:func:`diffguide.jobs.machine.config_machine`), whose points must be retained
             nodes. Default: :func:`~diffguide.machine.build.build_machine` of ``spec``.
         mesh_points: the points ``{name: (x, y)}`` (m) whose grid lines the table's mesh holds;
             default ``measured_points`` (the fit's mesh; the requested points are interpolated

@@ -19,7 +19,4 @@ from .superelement import read_dmig as read_dmig
 from .superelement import read_inp_nodes as read_inp_nodes
 from .superelement import read_user_element_matrix as read_user_element_matrix
 from .superelement import reduced_from_reactions as reduced_from_reactions
-from .superelement_file import ImportedTable as ImportedTable
-from .superelement_file import imported_machine as imported_machine
 from .superelement_file import load_imported_table as load_imported_table
-from .table_source import config_machine as config_machine

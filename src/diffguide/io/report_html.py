@@ -7,7 +7,7 @@ import base64
 import html
 import json
 
-from .fit_report import undetermined_lines
+from .report_text import undetermined_lines
 
 #: Decimals of the straightness table (µm): 10 nm.
 DECIMALS = 2

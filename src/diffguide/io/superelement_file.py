@@ -29,30 +29,15 @@
 Every error names the file and the key.
 """
 
-import dataclasses
 import os
 import tomllib
 from pathlib import Path
 
-from ..fe.superelement import ReducedMatrix, RetainedPoint, with_rotation_nodes
-from ..machine.imported import build_imported_machine, interface_names
+from ..fe.superelement import RetainedPoint, with_rotation_nodes
+from ..machine.imported import ImportedTable
 from . import superelement as se
 
 FORMATS = ("ccx-mtx", "abaqus-mtx", "dmig", "ccx-reactions")
-
-
-@dataclasses.dataclass(frozen=True)
-class ImportedTable:
-    """An imported table's data, SI: the reduced matrix (rotation nodes merged), the node
-    coordinates, the interface nodes ``{name: node}``, the points ``{name: (RetainedPoint,
-    rigid_to name or None)}``, the weight ``(mass, cog)`` when given and the file's format."""
-
-    matrix: ReducedMatrix
-    coords: dict
-    interfaces: dict
-    points: dict
-    weight: tuple | None = None
-    format: str = ""
 
 
 def _bad(path, key, message):
@@ -145,27 +130,3 @@ def load_imported_table(path: str | os.PathLike) -> ImportedTable:
         weight = (float(cfg.get("mass", 0.0)), tuple(float(c) * unit for c in cog))
     return ImportedTable(matrix=rm, coords=coords, interfaces=interfaces, points=points,
                          weight=weight, format=fmt)
-
-
-def resolve_points(path, data: ImportedTable, order) -> dict:
-    """``{name: RetainedPoint}`` of ``data`` with each ``rigid_to`` name turned into its index in
-    the interface ``order`` (carriages, then nut)."""
-    order = list(order)
-    points = {}
-    for name, (pt, rigid_to) in data.points.items():
-        if rigid_to is not None:
-            if rigid_to not in order:
-                _bad(path, f"points.{name}.rigid_to", f"{rigid_to!r} is not one of {order}")
-            pt = dataclasses.replace(pt, rigid_to=order.index(rigid_to))
-        points[name] = pt
-    return points
-
-
-def imported_machine(spec, path: str | os.PathLike, **kwargs):
-    """The machine ``spec`` on the imported table described by ``path`` (module docstring):
-    :func:`~diffguide.machine.imported.build_imported_machine`; ``kwargs`` passed on (``tol``,
-    ``check``)."""
-    data = load_imported_table(path)
-    points = resolve_points(path, data, interface_names(spec))
-    return build_imported_machine(spec, data.matrix, data.coords, data.interfaces, points,
-                                  weight=data.weight, **kwargs)

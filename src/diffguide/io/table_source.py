@@ -18,8 +18,9 @@ matrix and which retained node is which carriage, the nut and each control point
 have no meaning (the matrix is the table's stiffness and the file its weight): a file that gives
 them is refused, naming the key, rather than silently ignoring them. :func:`resolve_table_source`
 takes the two keys out of the raw file before it is validated (as
-:func:`~diffguide.io.carriage_block.resolve_catalogue` does for a catalogue block) and
-:func:`config_machine` builds the machine of a configuration from either source.
+:func:`~diffguide.io.carriage_block.resolve_catalogue` does for a catalogue block) and reads
+the description once, into the configuration (``cfg["table_source"]["table"]``); the machine
+of a configuration from either source: :func:`diffguide.jobs.machine.config_machine`.
 """
 
 import os
@@ -64,11 +65,14 @@ def resolve_table_source(raw: dict, source: str) -> tuple[dict, dict | None]:
 
     Returns:
         ``(raw, info)``: ``info`` is ``None`` for the plate, else ``{"source": "superelement",
-        "file": the description file's path, "given": the path as written}``.
+        "file": the description file's path, "given": the path as written, "table": its
+        :class:`~diffguide.machine.imported.ImportedTable`}``.
 
     Raises:
         ValueError: an unknown source, a missing or unreadable ``file`` (naming the line and
-            key), or a plate-only key next to ``source = "superelement"``.
+            key), a plate-only key next to ``source = "superelement"``, or a malformed
+            description (:class:`~diffguide.io.superelement.SuperelementFileError`).
+        OSError: a file the description names cannot be read.
     """
     table = raw.get("table") if isinstance(raw, dict) else None
     if not isinstance(table, dict) or not {"source", "file"} & table.keys():
@@ -105,29 +109,16 @@ def resolve_table_source(raw: dict, source: str) -> tuple[dict, dict | None]:
                 f'(source = "superelement") does not use: its stiffness and weight come from '
                 f"{given}; remove the key (the fit estimates a stiffness scale instead of a "
                 "thickness: [fit] stiffness_prior)")
-    return out, {"source": "superelement", "file": str(path), "given": given}
+    from .superelement_file import load_imported_table
+
+    return out, {"source": "superelement", "file": str(path), "given": given,
+                 "table": load_imported_table(path)}
 
 
 def imported_source(cfg: dict) -> dict | None:
     """The configuration's table source when it is imported (:func:`resolve_table_source`),
     else ``None`` (diffguide's plate)."""
     return cfg.get("table_source")
-
-
-_TABLES: dict = {}
-
-
-def _description(path: str):
-    """The imported table of a description file, read once per file version."""
-    from .superelement_file import load_imported_table
-
-    st = os.stat(path)
-    key = (os.path.abspath(path), st.st_mtime_ns, st.st_size)
-    if key not in _TABLES:
-        if len(_TABLES) >= 4:
-            _TABLES.pop(next(iter(_TABLES)))
-        _TABLES[key] = load_imported_table(path)
-    return _TABLES[key]
 
 
 def describe_source(cfg: dict) -> list[str]:
@@ -137,7 +128,7 @@ def describe_source(cfg: dict) -> list[str]:
     src = imported_source(cfg)
     if src is None:
         return ["# table: diffguide's plate (source = \"plate\")  # default"]
-    data = _description(src["file"])
+    data = src["table"]
     lines = ['# table: imported, source = "superelement"  # file',
              f"# file = \"{src['given']}\" ({src['file']})  # file",
              f"# format {data.format}: {data.matrix.source}, {len(data.matrix.dofs)} retained "
@@ -159,67 +150,6 @@ def describe_source(cfg: dict) -> list[str]:
     return lines
 
 
-def config_machine(cfg: dict, *, nx: int | None = None, ny: int | None = None,
-                   points: dict | None = None, stiffness_scale=None, **overrides):
-    """The :class:`~diffguide.machine.Machine` of a validated configuration, whichever the
-    table's source.
-
-    Arguments:
-        cfg: the configuration (:func:`diffguide.io.config.load_config`).
-        nx, ny: the plate's mesh (``None``: the file's); refused for an imported table.
-        points: control points ``{name: (x, y)}`` (m) in place of the file's; for an imported
-            table each must be a retained node of the description file.
-        stiffness_scale: a factor on an imported table's stiffness (may be traced;
-            :func:`~diffguide.fe.superelement.scaled_table`); refused for the plate.
-        overrides: :func:`~diffguide.machine.build.build_machine`'s (``thickness``,
-            ``preload_fraction``, …; SI); an imported table takes ``preload_fraction`` only.
-    """
-    import equinox as eqx
-
-    from ..fe.superelement import scaled_table
-    from ..machine.build import build_machine, with_overrides
-    from ..machine.imported import build_imported_machine, interface_names
-    from .config_spec import spec_from_config
-    from .superelement_file import resolve_points
-
-    spec = spec_from_config(cfg)
-    src = imported_source(cfg)
-    if src is None:
-        if stiffness_scale is not None:
-            raise ValueError("a stiffness scale applies to an imported table only (source = "
-                             '"superelement"); the plate has a thickness')
-        return build_machine(spec, nx=nx, ny=ny, points=points, **overrides)
-    if nx is not None or ny is not None:
-        raise ValueError(f"--mesh: the table is imported from {src['given']} (source = "
-                         '"superelement"): it has no mesh to set')
-    plate = sorted(k for k, v in overrides.items() if v is not None and k != "preload_fraction")
-    if plate:
-        raise ValueError(f"{', '.join(plate)}: not a parameter of the imported table "
-                         f"{src['given']} (only preload_fraction and stiffness_scale are)")
-    spec = with_overrides(spec, points=points, preload_fraction=overrides.get("preload_fraction"))
-    data = _description(src["file"])
-    pts = resolve_points(src["file"], data, interface_names(spec))
-    try:
-        machine = build_imported_machine(spec, data.matrix, data.coords, data.interfaces, pts,
-                                         weight=data.weight)
-    except KeyError as exc:  # a point or interface without its node: bad input, named
-        raise ValueError(f"{exc.args[0]} (the table of {src['given']}: measure or predict at "
-                         f"its retained points, {', '.join(data.points)})") from None
-    if stiffness_scale is not None:
-        machine = eqx.tree_at(lambda m: m.table, machine,
-                              scaled_table(machine.table, stiffness_scale))
-    return machine
-
-
-def machine_builder(cfg: dict, nx: int | None = None, ny: int | None = None):
-    """``make_machine(points, **kw)`` for :func:`diffguide.inverse.predict.predict`: the
-    configuration's machine with ``points`` and the fitted structure (:func:`config_machine`);
-    ``None`` for the plate (predict's own builder)."""
-    if imported_source(cfg) is None:
-        return None
-    return lambda points, **kw: config_machine(cfg, nx=nx, ny=ny, points=points, **kw)
-
-
 def retained_points(cfg: dict) -> dict:
     """``{name: (x, y)}`` (m) of the control points an imported table retains (its
     description file's points, at their nodes' coordinates): the only places it can be
@@ -227,6 +157,6 @@ def retained_points(cfg: dict) -> dict:
     src = imported_source(cfg)
     if src is None:
         raise ValueError("retained points: the table is diffguide's plate, not imported")
-    data = _description(src["file"])
+    data = src["table"]
     return {name: tuple(float(v) for v in data.coords[pt.node][:2])
             for name, (pt, _) in data.points.items()}

@@ -196,8 +196,8 @@ class FitResult:
 
 
 def report_json_text(report: dict) -> str:
-    """report.json's text (plain JSON types, :func:`diffguide.io.fit_report.jsonable`)."""
-    from ..io.fit_report import jsonable
+    """report.json's text (plain JSON types, :func:`diffguide.io.report_text.jsonable`)."""
+    from ..io.report_text import jsonable
 
     return json.dumps(jsonable(report), indent=1, allow_nan=False) + "\n"
 
@@ -213,7 +213,7 @@ def fit_job(settings: FitSettings, *, progress: Callable[[str], None] | None = N
     from ..inverse import MachineFamily
     from ..io.config import default_config, load_config, spec_from_config
     from ..io.fit_files import profile_grid
-    from ..io.table_source import config_machine
+    from .machine import config_machine
     from ..plotting.render import FigureWorker
 
     s, say = settings, progress or (lambda text: None)
@@ -263,7 +263,7 @@ def _outputs(s, meas, fits, profiles, s_m, truth, seconds, machine, t_start, cfg
     from ..io.fit_files import fit_csv_text, layout_csv_text, rails_csv_text
     from ..io.fit_posterior import NAME as POSTERIOR
     from ..io.fit_posterior import posterior_json_text
-    from ..io.fit_report import fit_report
+    from .fit_summary import fit_report
     from . import fit_report as rep
 
     plots = {} if s.no_plots else rep.plot_jobs(meas, fits, profiles, s_m, truth)
@@ -463,7 +463,7 @@ def _compensation(s: FitSettings, cfg: dict, spec, measured_points, fit, x0_mm: 
     [warning per point where a rigid-body compensation would not hold])``."""
     import numpy as np
 
-    from ..io.table_source import machine_builder
+    from .machine import machine_builder
     from ..studies.compensation import fitted_compensation
     from .export import export_spec
 

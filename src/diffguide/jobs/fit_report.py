@@ -1,5 +1,5 @@
 """``fit``'s report for a metrologist: the straightness, compensation and stamp sections of
-``report.json`` (:func:`diffguide.io.fit_report.metrologist_sections`), the figures of
+``report.json`` (:func:`diffguide.jobs.fit_summary.metrologist_sections`), the figures of
 ``report.html`` (drawn by the figures' process), and the page itself
 (:func:`diffguide.io.report_html.report_html`, from ``report.json``'s text: one set of
 numbers)."""
@@ -27,7 +27,8 @@ def sections(args, report, meas, fit, s_m, cfg, info) -> dict:
     """report.json's ``straightness``, ``compensation``, ``stamp`` and ``plan_suggestion``
     (the planner's command where the data leave wavelengths undetermined, else None), for
     ``report`` (its ``identifiability`` section read)."""
-    from ..io.fit_report import metrologist_sections, stamp_section, undetermined_lines
+    from ..io.report_text import undetermined_lines
+    from .fit_summary import metrologist_sections, stamp_section
 
     export = (None if not args.export_compensation else
               {"file": str(args.export_compensation), "format": args.comp_format,

@@ -20,9 +20,12 @@ from .equilibrium import equilibrium as equilibrium
 from .equilibrium import node_motion as node_motion
 from .equilibrium import point_motion as point_motion
 from .equilibrium import rigid_body_map as rigid_body_map
+from .imported import ImportedTable as ImportedTable
 from .imported import build_imported_machine as build_imported_machine
 from .imported import imported_table as imported_table
 from .imported import interface_names as interface_names
+from .imported import machine_from_imported as machine_from_imported
+from .imported import machine_of_source as machine_of_source
 from .kinematics import ERROR_NAMES as ERROR_NAMES
 from .kinematics import JointErrors as JointErrors
 from .kinematics import error_field as error_field
