@@ -316,7 +316,7 @@ def maximise_marginal(score, q0, bounds, *,
     f = _Counted(score)
     sol = solver.solve(f, q0, bounds)
     cov, stats = sol.state.cov, {}
-    if sol.result != RESULTS.nonfinite:
+    if not sol.ended(RESULTS.nonfinite):
         cov, factors = widen(f, sol.value, cov, bounds[:, 0], bounds[:, 1])
         stats["widened"] = [float(x) for x in factors]
         if np.any(factors > 1.0 + 1e-9):

@@ -37,13 +37,18 @@ class Solution(eqx.Module):
 
     @property
     def converged(self) -> bool:
-        """Whether the solve met its tolerance (``result == RESULTS.successful``)."""
-        return bool(self.result == RESULTS.successful)
+        """Whether the solve met its tolerance (``result`` is ``RESULTS.successful``)."""
+        return self.ended(RESULTS.successful)
+
+    def ended(self, code: RESULTS) -> bool:
+        """Whether ``result`` is ``code``, as a Python bool: compared on the host by its
+        message (``result == code`` is a JAX array, and a small compilation the first time)."""
+        return RESULTS[self.result] == RESULTS[code]
 
 
 def finish(value, result: RESULTS, state, steps: int, message: str, stats: dict | None = None,
            *, throw: bool = False) -> Solution:
     """The :class:`Solution`; with ``throw``, ``RuntimeError(message)`` unless successful."""
-    if throw and result != RESULTS.successful:
+    if throw and RESULTS[result] != RESULTS[RESULTS.successful]:
         raise RuntimeError(message)
     return Solution(value, result, state, {} if stats is None else stats, int(steps), message)

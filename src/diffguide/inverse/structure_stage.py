@@ -99,7 +99,7 @@ def structure_stage(problem: FitProblem, x, r, J, weights):
     p = score.parts_at(q)
     s2 = p[0] / max(p[2], 1) if p is not None else 1.0  # ŝ², the profiled noise variance
     note["noise_scale"] = float(np.sqrt(s2))
-    if s2 < 1.0 and sol.result != RESULTS.nonfinite:
+    if s2 < 1.0 and not sol.ended(RESULTS.nonfinite):
         # the data scatter less than their stated σ: the profiled score would take that
         # scatter, model error included, for the noise and narrow the structure's σ; like
         # the rails' σ, it is never narrowed below what the stated σ give (module docstring)
