@@ -446,9 +446,9 @@ def test_the_structure_estimate_is_the_minimum_of_its_objective(monkeypatch):
     search = stage_module.maximise_marginal
 
     def recording(score, q0, bounds, **kw):
-        q, cov, info = search(score, q0, bounds, **kw)
-        calls.append((score, q, cov, bounds))
-        return q, cov, info
+        sol = search(score, q0, bounds, **kw)
+        calls.append((score, sol.value, sol.state.cov, bounds))
+        return sol
 
     monkeypatch.setattr(stage_module, "maximise_marginal", recording)
     case = dataclasses.replace(cases.planned(CASES["thickness_30mm"]()), seed=2)

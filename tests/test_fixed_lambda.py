@@ -10,17 +10,17 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from diffguide.inverse.lm import levenberg_marquardt
+from diffguide.inverse.lm import LevenbergMarquardt
 from diffguide.inverse.solve import _RailLinearisation
 
 
 def _lm(fun, jac, x0, P, rtol=1e-6, max_steps=60):
     def linearise(x):
-        return fun(x), jac(x), None, True, None
+        return fun(x), jac(x), True, None
 
-    x, r, J, _, _, converged, steps, msg = levenberg_marquardt(
-        x0, fun(x0), jac(x0), None, None, linearise, P, rtol, max_steps)
-    return x, float(r @ r + x @ P @ x), converged, steps, msg
+    sol = LevenbergMarquardt(rtol=rtol, max_steps=max_steps).solve(linearise, x0, P)
+    x, r = sol.value, sol.state.residual
+    return x, float(r @ r + x @ P @ x), sol.converged, sol.steps, sol.message
 
 
 def _scipy(fun, jac, x0, P):

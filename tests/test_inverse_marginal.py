@@ -5,6 +5,7 @@ density computed directly."""
 import numpy as np
 import pytest
 
+from diffguide._core.result import RESULTS
 from diffguide.inverse.marginal import (
     NULL_TOL,
     carries_information,
@@ -20,11 +21,13 @@ def test_newton_finds_a_quadratic_minimum_and_its_exact_covariance():
     covariance ``2H⁻¹ = K⁻¹`` is exact."""
     K = np.array([[3.0, 1.2], [1.2, 2.5]])
     m = np.array([0.7, -1.1])
-    q, cov, info = maximise_marginal(lambda q: (q - m) @ K @ (q - m), np.zeros(2),
-                                     np.array([[-5.0, 5.0], [-5.0, 5.0]]))
+    sol = maximise_marginal(lambda q: (q - m) @ K @ (q - m), np.zeros(2),
+                            np.array([[-5.0, 5.0], [-5.0, 5.0]]))
+    q, cov = sol.value, sol.state.cov
     np.testing.assert_allclose(q, m, atol=1e-6)
     np.testing.assert_allclose(cov, np.linalg.inv(K), rtol=1e-6)
-    assert info["at_bound"] == [False, False] and info["message"] == "converged"
+    assert sol.state.at_bound == (False, False) and sol.message == "converged"
+    assert sol.result == RESULTS.successful and sol.steps > 0
 
 
 def test_a_minimum_closer_than_the_tolerance_is_reached():
@@ -32,18 +35,19 @@ def test_a_minimum_closer_than_the_tolerance_is_reached():
     the estimate is never left at its start by the stopping rule."""
     K = np.array([[3.0, 1.2], [1.2, 2.5]])
     m = np.array([0.03, -0.04])
-    q, _, _ = maximise_marginal(lambda q: (q - m) @ K @ (q - m), np.zeros(2),
-                                np.array([[-5.0, 5.0], [-5.0, 5.0]]))
+    q = maximise_marginal(lambda q: (q - m) @ K @ (q - m), np.zeros(2),
+                          np.array([[-5.0, 5.0], [-5.0, 5.0]])).value
     np.testing.assert_allclose(q, m, atol=1e-9)
 
 
 def test_a_minimum_outside_the_box_is_flagged_and_a_flat_score_keeps_the_prior():
     K = np.diag([2.0, 2.0])
-    q, _, info = maximise_marginal(lambda q: (q - 9.0) @ K @ (q - 9.0), np.zeros(2),
-                                   np.array([[-3.0, 3.0], [-3.0, 3.0]]))
-    assert info["at_bound"] == [True, True] and np.all(q > 2.5)
+    sol = maximise_marginal(lambda q: (q - 9.0) @ K @ (q - 9.0), np.zeros(2),
+                            np.array([[-3.0, 3.0], [-3.0, 3.0]]))
+    assert sol.state.at_bound == (True, True) and np.all(sol.value > 2.5)
     # a score that is only the prior (the data say nothing): the prior's covariance
-    q, cov, _ = maximise_marginal(lambda q: q @ q, np.array([0.4]), np.array([[-3.0, 3.0]]))
+    sol = maximise_marginal(lambda q: q @ q, np.array([0.4]), np.array([[-3.0, 3.0]]))
+    q, cov = sol.value, sol.state.cov
     np.testing.assert_allclose(cov, np.eye(1), rtol=1e-6)
     assert abs(q[0]) < 1e-6
 
@@ -67,10 +71,11 @@ def test_a_curved_valley_is_followed_to_its_floor_from_far(start, a):
     minimize = pytest.importorskip("scipy.optimize").minimize
     f = _valley(a)
     box = np.array([[-4.0, 4.0], [-4.0, 4.0]])
-    q, _, info = maximise_marginal(f, np.array(start), box)
+    sol = maximise_marginal(f, np.array(start), box)
+    q = sol.value
     best = minimize(f, [a, 0.8 * a * a - 1.0], method="Nelder-Mead",
                     options={"xatol": 1e-10, "fatol": 1e-12, "maxiter": 20000})
-    assert info["message"] == "converged", info
+    assert sol.message == "converged", sol
     assert f(q) - best.fun < 0.02, (q, best.x)
 
 
@@ -143,9 +148,10 @@ def test_widen_follows_a_curved_valley_along_each_parameter():
 
 
 def test_failed_model_evaluations_give_the_prior_uncertainty():
-    q, cov, info = maximise_marginal(lambda q: np.inf, np.zeros(1), np.array([[-3.0, 3.0]]))
+    sol = maximise_marginal(lambda q: np.inf, np.zeros(1), np.array([[-3.0, 3.0]]))
+    q, cov = sol.value, sol.state.cov
     np.testing.assert_array_equal(cov, np.eye(1))
-    assert "failed" in info["message"]
+    assert "failed" in sol.message and sol.result == RESULTS.nonfinite
 
 
 @pytest.mark.parametrize("lam", [0.3, 5.0])

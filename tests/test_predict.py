@@ -87,11 +87,12 @@ class _Stepped(AbstractRailProfile):
 
 def _rails(post, c):
     c = np.asarray(c).reshape(2, 2, -1)
-    n = post.n_coeffs
-    splines = [SplineRail(post.start, post.spacing, c[r, 0, :n], c[r, 1, :n]) for r in range(2)]
-    if not post.joints:
+    b = post.basis
+    n = b.n_coeffs
+    splines = [SplineRail(b.start, b.spacing, c[r, 0, :n], c[r, 1, :n]) for r in range(2)]
+    if not b.joints:
         return tuple(splines)
-    return tuple(_Stepped(splines[r], tuple(post.joints), post.joint_width, c[r, 0, n:],
+    return tuple(_Stepped(splines[r], tuple(b.joints), b.joint_width, c[r, 0, n:],
                           c[r, 1, n:]) for r in range(2))
 
 
@@ -111,8 +112,8 @@ def test_with_a_rail_joint_the_steps_are_unknowns_of_the_prediction(fitted_joint
     steps (a spline plus a quintic step, written out in the test, by finite differences); the
     bundled rails have no joint at 137 mm: every fitted step is within 2σ of 0."""
     out, post, meta, spec = fitted_joint
-    assert post.joints == (0.137,) and post.coeffs.shape == (2, 2, post.n_coeffs + 1)
-    n = post.n_coeffs
+    assert post.basis.joints == (0.137,) and post.coeffs.shape == (2, 2, post.basis.n_coeffs + 1)
+    n = post.basis.n_coeffs
     steps = post.coeffs[:, :, n]
     sig = np.sqrt(np.diag(post.cov)[n::n + 1][:4]).reshape(2, 2)
     assert np.all(np.abs(steps) < 2 * sig), (steps * 1e6, sig * 1e6)

@@ -12,8 +12,9 @@ import equinox as eqx
 
 class RESULTS(eqx.Enumeration):
     """How a solve ended: ``successful``, ``nonlinear_max_steps_reached`` (the Newton step
-    limit was hit before the step fell below the tolerance) or ``nonfinite`` (an iterate
-    became inf or NaN)."""
+    limit was hit before the step fell below the tolerance), ``nonfinite`` (an iterate
+    became inf or NaN) or ``stagnation`` (no step decreased the objective further: the fit's
+    Levenberg–Marquardt and structure searches, :mod:`diffguide.inverse.solution`)."""
 
     successful = ""
     nonlinear_max_steps_reached = (
@@ -22,3 +23,7 @@ class RESULTS(eqx.Enumeration):
         "`max_steps`."
     )
     nonfinite = "Nonfinite (inf or nan) values detected during solve."
+    stagnation = (
+        "No step decreased the objective further before the tolerance was met; the best "
+        "estimate so far is returned."
+    )

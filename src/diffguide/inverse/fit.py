@@ -44,9 +44,9 @@ linearised in the rails (first at straight rails, then again at the fitted rails
 content (zero to round-off once the channel zeros and the lead are removed: all-zero readings,
 constant channels) leave ``q`` at its prior, value and σ, with a message
 (:func:`.marginal.carries_information`). At ``q̂`` the
-rails and lead minimise the objective above by Levenberg–Marquardt (:func:`.lm.levenberg_marquardt`:
-one compiled linearisation — residual and ``jacfwd`` Jacobian through the implicit equilibria —
-per step, the damped normal equations solved in NumPy), started from the Gauss–Newton step. λ
+rails and lead minimise the objective above by Levenberg–Marquardt
+(:class:`.lm.LevenbergMarquardt`: one compiled linearisation — residual and ``jacfwd``
+Jacobian through the implicit equilibria — per step, the damped normal equations solved in NumPy), started from the Gauss–Newton step. λ
 is chosen on the problem linearised at the current estimate (:mod:`.weight`: marginal likelihood
 by default, GCV on request, or given), with the lead unknowns projected out, then re-chosen at
 the solution and the fit repeated once if it moved by more than a factor 1.5.

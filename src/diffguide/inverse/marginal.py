@@ -20,15 +20,16 @@ prior, ``q`` in units of its prior σ). The prior's weight and shape are held wh
 The log-determinant is what the joint mode lacks: it
 charges a structure for every direction in which it makes the data more sensitive to the rails.
 ``q`` has one or two components, so :func:`maximise_marginal` takes Newton steps on central
-differences; the curvature there gives the Laplace approximation of ``q``'s posterior,
-``Cov q = 2 H⁻¹`` (``H`` the Hessian of the objective above, never below the prior's ``2I``).
+differences (:class:`.trust_region.TrustRegionNewton`); the curvature there gives the Laplace
+approximation of ``q``'s posterior, ``Cov q = 2 H⁻¹`` (``H`` the Hessian of the objective above,
+never below the prior's ``2I``).
 
 **The differences follow the objective's scale.** The first stencil steps 0.3 prior σ; each
 later one half the conditional σ of each component that the last Hessian implies (within
-[:data:`MIN_STEP`, :data:`STEP`]), and the search ends when Newton's predicted decrease of
-``−2 log p`` is below :data:`DECREASE_TOL`. A Newton step is at most a trust radius long (1
-prior σ at first, doubled after a step the quadratic model predicted well, up to
-:data:`MAX_RADIUS`); a component at a bound of the box whose gradient points out of it is held
+[:data:`.trust_region.MIN_STEP`, :data:`.trust_region.STEP`]), and the search ends when Newton's
+predicted decrease of ``−2 log p`` is below :data:`.trust_region.DECREASE_TOL`. A Newton step is
+at most a trust radius long (1 prior σ at first, doubled after a step the quadratic model
+predicted well, up to :data:`.trust_region.MAX_RADIUS`); a component at a bound of the box whose gradient points out of it is held
 there and the step taken in the others, so that a search started far away slides along the
 bound rather than stalling against it. With thickness and preload strongly correlated the
 objective is a narrow, curved valley. A fixed 0.3 step straddled it, and Newton stopped short of
@@ -85,24 +86,17 @@ reaches) and against ``scale``, the size of the numbers ``y`` is computed from (
 subtracting large channel zeros).
 """
 
+import dataclasses
 import logging
 
 import numpy as np
 
+from .._core.result import RESULTS
+from .solution import Solution
+from .trust_region import STEP, TrustRegionNewton, difference_steps, floor, stencil
 from .weight import _Spectrum, ml_score
 
 _log = logging.getLogger("diffguide")
-#: Largest central-difference step in ``q`` (units of the prior σ), the first iteration's.
-STEP = 0.3
-#: Smallest central-difference step (prior σ).
-MIN_STEP = 0.02
-#: Newton iterations at most; a step whose predicted decrease of the objective (``−2 log p``)
-#: is below :data:`DECREASE_TOL` is taken without a check and ends them.
-MAX_ITER = 30
-#: Largest trust radius of a Newton step (prior σ); the first is 1, doubled after a step the
-#: quadratic model predicted well, cut to a step that fell short.
-MAX_RADIUS = 4.0
-DECREASE_TOL = 0.01
 #: Data whose norm is below this fraction of ``max(√N', scale)`` are zero to round-off
 #: (:func:`carries_information`).
 NULL_TOL = 1e-9
@@ -153,59 +147,6 @@ def marginal_score(J, y, Omega, n_eff: int, lam: float, scale2: float | None = N
     return score_of_parts(*marginal_parts(J, y, Omega, lam), n_eff, scale2)
 
 
-def _stencil(f, q, h):
-    """Value, gradient and Hessian of ``f`` at ``q`` by central differences (step ``h``, a
-    number or one per component)."""
-    n = q.size
-    h = np.broadcast_to(np.asarray(h, float), (n,))
-    f0 = f(q)
-    g, H = np.zeros(n), np.zeros((n, n))
-    fp, fm = np.zeros(n), np.zeros(n)
-    for i in range(n):
-        e = np.zeros(n)
-        e[i] = h[i]
-        fp[i], fm[i] = f(q + e), f(q - e)
-        g[i] = (fp[i] - fm[i]) / (2 * h[i])
-        H[i, i] = (fp[i] - 2 * f0 + fm[i]) / h[i] ** 2
-    for i in range(n):
-        for j in range(i + 1, n):
-            e = np.zeros(n)
-            e[i], e[j] = h[i], h[j]
-            fpp, fmm = f(q + e), f(q - e)
-            H[i, j] = H[j, i] = ((fpp - fp[i] - fp[j] + 2 * f0 - fm[i] - fm[j] + fmm)
-                                 / (2 * h[i] * h[j]))
-    return f0, g, H
-
-
-def _steps(H):
-    """Central-difference steps matched to the objective's scale: half the conditional σ of
-    each component, ``½√(2/H_ii)``, within ``[MIN_STEP, STEP]``. A valley narrower than a fixed
-    step (two strongly correlated unknowns) is otherwise seen smeared, and Newton stops short of
-    its floor."""
-    cond = np.sqrt(2.0 / np.maximum(np.diag(H), 2.0))
-    return np.clip(0.5 * cond, MIN_STEP, STEP)
-
-
-def _newton_step(H, g, q, lo, hi):
-    """The Newton step ``−H⁻¹g`` over the components free to move: a component at a bound of
-    the box whose gradient pushes it outward is held there (projected Newton); the step is
-    taken in the others, so that the search slides along the bound instead of being clipped
-    to a standstill against it."""
-    held = ((q <= lo + 1e-9) & (g > 0)) | ((q >= hi - 1e-9) & (g < 0))
-    free = ~held
-    delta = np.zeros_like(q)
-    if np.any(free):
-        delta[free] = -np.linalg.solve(H[np.ix_(free, free)], g[free])
-    return delta
-
-
-def _floor(H):
-    """``H`` with its eigenvalues raised to the prior's 2 (difference noise aside, the data only
-    add curvature)."""
-    w, V = np.linalg.eigh(0.5 * (H + H.T))
-    return (V * np.maximum(w, 2.0)) @ V.T
-
-
 def widen(f, q, cov, lo, hi, at: float = CHECK_AT, grad=None):
     """``Cov q`` widened where the objective ``f`` (``-2 log p + ‖q‖²``) rises more slowly than
     its quadratic model (module docstring): along each eigenvector ``v_i`` of ``cov`` (σ ``σ_i``),
@@ -247,7 +188,7 @@ def _profile(f, q, i, t, cov, lo, hi, iters: int = PROFILE_ITER):
     other = np.arange(q.size) != i
     P = np.linalg.inv(cov)
     Poo = P[np.ix_(other, other)]
-    h = _steps(2.0 * Poo)
+    h = difference_steps(2.0 * Poo)
     lo_o, hi_o = lo[other] + h, hi[other] - h
     u = q.copy()
     u[i] = t
@@ -261,10 +202,10 @@ def _profile(f, q, i, t, cov, lo, hi, iters: int = PROFILE_ITER):
     with np.errstate(invalid="ignore"):
         best = sub(u[other])
         for _ in range(iters):
-            f0, g, H = _stencil(sub, u[other], h)
+            f0, g, H = stencil(sub, u[other], h)
             if not (np.isfinite(f0) and np.all(np.isfinite(g)) and np.all(np.isfinite(H))):
                 break
-            step = -np.linalg.solve(_floor(H), g)
+            step = -np.linalg.solve(floor(H), g)
             norm = float(np.linalg.norm(step))
             if norm > 1.0:
                 step /= norm
@@ -325,109 +266,64 @@ def _profile_widen(f, q, cov, lo, hi, at, tangent: bool, f0):
 def laplace(f, q, cov0, bounds):
     """``Cov q = 2H⁻¹`` of the objective ``f`` at ``q`` (its Hessian by central differences,
     each step half the conditional σ that ``cov0`` and then the Hessian itself imply, within
-    [:data:`MIN_STEP`, :data:`STEP`]; eigenvalues floored at the prior's), widened by
-    :func:`widen` where ``f`` rises more slowly than that. For an objective other than the one
+    [:data:`.trust_region.MIN_STEP`, :data:`.trust_region.STEP`]; eigenvalues floored at the
+    prior's), widened by :func:`widen` where ``f`` rises more slowly than that. For an objective other than the one
     the search minimised (its gradient at ``q`` not zero), the rise is counted from its tangent
     plane at ``q``: its curvature, not its slope. Returns ``(cov, factors)``."""
     bounds = np.asarray(bounds, float)
-    steps = _steps(2.0 * np.linalg.inv(cov0))
+    steps = difference_steps(2.0 * np.linalg.inv(cov0))
     for _ in range(3):
         with np.errstate(invalid="ignore"):
-            _, g, H = _stencil(f, q, steps)
+            _, g, H = stencil(f, q, steps)
         if not (np.all(np.isfinite(H)) and np.all(np.isfinite(g))):
             return np.eye(q.size), np.ones(q.size)
-        new = np.minimum(_steps(H), STEP)
+        new = np.minimum(difference_steps(H), STEP)
         if np.all(np.abs(np.log(new / steps)) < np.log(1.5)):
             break
         steps = new
-    cov = 2.0 * np.linalg.inv(_floor(H))
+    cov = 2.0 * np.linalg.inv(floor(H))
     return widen(f, q, cov, bounds[:, 0], bounds[:, 1], grad=g)
 
 
-def maximise_marginal(score, q0, bounds, *, h: float = STEP, max_iter: int = MAX_ITER):
-    """Minimise ``score(q)`` (``-2 log p(y|q) + ‖q‖²``) over the box ``bounds`` (``(n, 2)``,
-    prior-σ units) by Newton steps on central differences.
+class _Counted:
+    """``score`` with its values at points already evaluated kept (:func:`widen` starts where
+    the search stopped) and the points counted."""
 
-    Returns ``(q, Cov q, info)``: ``Cov q = 2H⁻¹`` at ``q`` (at most the prior's ``I``; the prior's
-    ``I`` when the score could not be evaluated around ``q``), widened by :func:`widen` where the
-    objective is flatter than that; ``info`` with ``iterations``, ``evaluations``, ``at_bound``
-    (per component), ``widened`` (σ factor per principal axis) and ``message``.
-    """
-    q = np.asarray(q0, float).copy()
-    bounds = np.asarray(bounds, float)
-    lo, hi = bounds[:, 0] + h, bounds[:, 1] - h
-    q = np.clip(q, lo, hi)
-    count = [0]
-    seen: dict = {}  # the score at points already evaluated (widen starts where Newton stopped)
+    def __init__(self, score):
+        self.score, self.seen = score, {}
 
-    def f(v):
+    def __call__(self, v):
         key = np.asarray(v, float).tobytes()
-        if key not in seen:
-            count[0] += 1
-            seen[key] = float(score(v))
-        return seen[key]
+        if key not in self.seen:
+            self.seen[key] = float(self.score(v))
+        return self.seen[key]
 
-    info = {"iterations": 0, "at_bound": [False] * q.size, "message": "converged"}
-    cov = np.eye(q.size)
-    steps = np.full(q.size, float(h))
-    radius = 1.0  # trust radius of a Newton step (prior σ)
-    for it in range(1, max_iter + 1):
-        info["iterations"] = it
-        with np.errstate(invalid="ignore"):  # inf − inf where the model failed: caught below
-            f0, g, H = _stencil(f, q, steps)
-        if not (np.isfinite(f0) and np.all(np.isfinite(g)) and np.all(np.isfinite(H))):
-            info["message"] = ("the model failed near the structure estimate; its uncertainty "
-                               "is the prior's")
-            cov = np.eye(q.size)
-            break
-        Hf = _floor(H)
-        cov = 2.0 * np.linalg.inv(Hf)
-        delta = _newton_step(Hf, g, q, lo, hi)
-        norm = float(np.linalg.norm(delta))
-        if norm > radius:
-            delta *= radius / norm
-        decrease = -float(g @ delta) - 0.5 * float(delta @ Hf @ delta)  # the model's, ≥ 0
-        new_steps = np.minimum(_steps(H), h)
-        rescaled = bool(np.any(new_steps < steps / 1.5))  # the stencil was too coarse
-        _log.info("fit: structure iteration %d, score %.6g, step %.3g (prior sigma), predicted "
-                  "decrease %.3g", it, f0, norm, decrease)
-        if decrease < DECREASE_TOL and not rescaled:  # the quadratic model is good for this
-            q = np.clip(q + delta, lo, hi)  # step: take it (else a short first step left q at
-            break  # the prior: "exactly the prior" would be an artefact of this rule)
-        for _ in range(5):
-            q_new = np.clip(q + delta, lo, hi)
-            f_new = f(q_new)
-            if f_new <= f0:
-                break
-            delta *= 0.5
-        else:  # no decrease along the Newton direction: a finer stencil may see one
-            radius = max(float(np.linalg.norm(delta)), STEP)
-            if rescaled:
-                steps = new_steps
-                continue
-            if decrease > 10 * DECREASE_TOL:
-                info["message"] = ("no step decreased the marginal likelihood's objective "
-                                   "further")
-            break
-        taken = q_new - q
-        model = -float(g @ taken) - 0.5 * float(taken @ Hf @ taken)
-        length = float(np.linalg.norm(taken))
-        if length >= 0.99 * radius and f0 - f_new >= 0.75 * model:  # the model held to the
-            radius = min(2.0 * radius, MAX_RADIUS)  # trust radius: trust it further
-        elif length < 0.99 * radius:
-            radius = max(length, STEP)
-        steps = new_steps
-        q = q_new
-    else:
-        info["message"] = f"stopped after {max_iter} Newton iterations"
-    info["at_bound"] = [bool(a or b) for a, b in zip(q <= lo + 1e-9, q >= hi - 1e-9)]
-    if not info["message"].startswith("the model failed"):
-        cov, factors = widen(f, q, cov, bounds[:, 0], bounds[:, 1])
-        info["widened"] = [float(x) for x in factors]
+
+def maximise_marginal(score, q0, bounds, *,
+                      solver: TrustRegionNewton = TrustRegionNewton()) -> Solution:
+    """Minimise ``score(q)`` (``-2 log p(y|q) + ‖q‖²``) over the box ``bounds`` (``(n, 2)``,
+    prior-σ units) by Newton steps on central differences (``solver``,
+    :class:`.trust_region.TrustRegionNewton`), then widen its Laplace covariance where the
+    objective is flatter than its quadratic model (:func:`widen`).
+
+    Returns the solver's :class:`~.solution.Solution` with ``state.cov`` the covariance,
+    ``Cov q = 2H⁻¹`` at ``q`` (at most the prior's ``I``; the prior's ``I`` when the score could
+    not be evaluated around ``q``, ``result`` ``nonfinite``) widened, and ``stats``
+    ``{"evaluations": distinct points evaluated, "widened": σ factor per principal axis}``
+    (``widened`` absent where the score failed).
+    """
+    bounds = np.asarray(bounds, float)
+    f = _Counted(score)
+    sol = solver.solve(f, q0, bounds)
+    cov, stats = sol.state.cov, {}
+    if not sol.ended(RESULTS.nonfinite):
+        cov, factors = widen(f, sol.value, cov, bounds[:, 0], bounds[:, 1])
+        stats["widened"] = [float(x) for x in factors]
         if np.any(factors > 1.0 + 1e-9):
             _log.info("fit: the structure's Laplace σ widened by %s along its principal axes "
                       "(the objective rises more slowly than its quadratic model)",
                       ", ".join(f"{x:.2f}" for x in factors))
-    info["evaluations"] = count[0]
+    stats["evaluations"] = len(f.seen)
     cov = 0.5 * (cov + cov.T)
-    return q, cov, info
+    return dataclasses.replace(sol, state=dataclasses.replace(sol.state, cov=cov),
+                               stats=stats)

@@ -18,8 +18,8 @@ import jax
 import jax.numpy as jnp
 
 from .._core.aot import cached_program
-from ..guideway.rails import JOINT_WIDTH, basis_rail
 from ..machine.kinematics import joint_errors_traced
+from .basis import RailBasis
 from .data import QUANTITIES
 from .structure import MachineFamily
 
@@ -47,25 +47,19 @@ class _Problem(eqx.Module):
     chan: jax.Array
     prior_sigma: jax.Array
     x_ref: jax.Array
-    start: float = eqx.field(static=True)
-    spacing: float = eqx.field(static=True)
-    n_coeffs: int = eqx.field(static=True)
+    basis: RailBasis
     n_chan: int = eqx.field(static=True)
     n_q: int = eqx.field(static=True)
-    joints: tuple[float, ...] = eqx.field(static=True, default=())
-    joint_width: float = eqx.field(static=True, default=JOINT_WIDTH)
 
     @property
     def n_c(self) -> int:
-        return 4 * (self.n_coeffs + len(self.joints))
+        return self.basis.size
 
 
 def _rails(c_um, prob: _Problem):
     """The rails of the coefficients ``c_um`` (µm; each profile's spline, then its joints'
-    steps: :class:`.basis.RailBasis`)."""
-    c = c_um.reshape(2, 2, prob.n_c // 4) * _UM
-    return tuple(basis_rail(prob.start, prob.spacing, c[r, 0], c[r, 1], prob.joints,
-                            prob.joint_width) for r in range(2))
+    steps: :meth:`.basis.RailBasis.rails`)."""
+    return prob.basis.rails(c_um.reshape(2, 2, prob.basis.per_profile) * _UM)
 
 
 def _model(v, prob: _Problem):

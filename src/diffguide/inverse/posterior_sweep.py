@@ -34,6 +34,7 @@ from ..guideway.rails import bspline_matrix
 from ..machine.build import build_machine, table_from_spec, with_overrides
 from ..machine.kinematics import ERROR_NAMES, joint_errors_traced
 from .posterior import SECANT_STEP_LIMITS
+from .structure import scaled_preload
 
 #: Machines kept (each a condensation of the table; ~1 s for ``majda2012``).
 MACHINE_CACHE_SIZE = 8
@@ -80,8 +81,7 @@ def perturbed_joint_errors(c, dq_p, machine, positions, x_ref, basis, sigma_p):
     """:func:`~diffguide.machine.kinematics.joint_errors_traced` of ``machine`` for rail
     coefficients ``c`` (m, flat, on ``basis``) with the preload moved by ``dq_p`` prior σ
     (``sigma_p``) of its log: the fitted model as the prediction evaluates it."""
-    m = eqx.tree_at(lambda mm: mm.carriage.preload_force, machine,
-                    machine.carriage.preload_force * jnp.exp(sigma_p * dq_p))
+    m = scaled_preload(machine, sigma_p * dq_p)
     rails = basis.rails(c.reshape(2, 2, basis.per_profile))
     return joint_errors_traced(m, rails, positions, x_ref)
 

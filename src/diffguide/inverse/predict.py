@@ -20,7 +20,8 @@ slope of both rails in each plane, which no reading determines, fixed as in the 
 (:mod:`.basis`); the linear part of a straightness curve is a matter of its reference line.
 
 ``J`` in ``c`` and in the preload: one forward-mode pass through the implicit equilibria (the
-preload scales ``Carriage.preload_force``, as in :class:`.structure.MachineFamily`). ``J`` in
+preload scales ``Carriage.preload_force``, :func:`.structure.scaled_preload`, as in
+:class:`.structure.MachineFamily`). ``J`` in
 the thickness (or an imported table's stiffness scale): a secant over ``±h`` (``h`` its
 posterior σ within :data:`~.posterior.SECANT_STEP_LIMITS`, as the fit's own structure
 sensitivity), the table condensed at ``t̂·e^{±hσ_t}`` (scaled by ``ŝ·e^{±hσ_s}``).
@@ -57,7 +58,7 @@ import numpy as np
 
 from .._core.checks import mm_hint
 from .._core.limits import MAX_PREDICTION_BYTES, gigabytes
-from ..guideway.rails import JOINT_WIDTH, bspline_matrix
+from ..guideway.rails import bspline_matrix
 from ..machine.errors import to_user
 from ..machine.kinematics import ERROR_NAMES, POSITION_RANGE
 from .basis import RailBasis
@@ -82,7 +83,8 @@ class FitPosterior:
     (:mod:`diffguide.io.fit_posterior`).
 
     Attributes:
-        start, spacing, n_coeffs: the rails' knot grid (m). coeffs: ``(2 rails, 2 planes, n)``
+        basis: the rails' unknowns (:class:`~.basis.RailBasis`: the knot grid, the rail joints
+            and their steps' rise, m). coeffs: ``(2 rails, 2 planes, n)``
             spline coefficients (m), then the rail joints' step heights (m), planes (vertical,
             horizontal). cov: ``Cov v`` of
             ``v = (c, q, ℓ)`` (c, ℓ in m; q in prior σ). structure: per structural unknown,
@@ -90,12 +92,10 @@ class FitPosterior:
             preload a fraction of C). lead: the lead-error coefficients (m), on lead_basis
             ``(start, spacing, n)`` (m) or ``()``. position_range: the measured positions'
             ``(min, max)`` (m). rigid: fitted with the rigid-table model. x_ref: the reference
-            position (m). joints, joint_width: the rail joints (m) and their steps' rise (m).
+            position (m).
     """
 
-    start: float
-    spacing: float
-    n_coeffs: int
+    basis: RailBasis
     coeffs: np.ndarray
     cov: np.ndarray
     structure: dict
@@ -104,11 +104,11 @@ class FitPosterior:
     position_range: tuple
     rigid: bool = False
     x_ref: float = 0.0
-    joints: tuple = ()
-    joint_width: float = JOINT_WIDTH
 
     def __post_init__(self):
-        n = self.basis.per_profile  # checks the joints
+        if not isinstance(self.basis, RailBasis):
+            raise ValueError(f"basis must be a RailBasis, got {type(self.basis).__name__}")
+        n = self.basis.per_profile
         n_v = 4 * n + len(self.structure) + len(self.lead)
         if np.shape(self.coeffs) != (2, 2, n):
             raise ValueError(f"coeffs must have shape (2, 2, {n}), got "
@@ -126,12 +126,6 @@ class FitPosterior:
         if not (np.all(np.isfinite(self.cov)) and np.all(d >= 0)):
             raise ValueError("cov must be finite with variances (its diagonal) >= 0")
 
-    @property
-    def basis(self) -> RailBasis:
-        """The rails' unknowns: knots and joints."""
-        return RailBasis(float(self.start), float(self.spacing), int(self.n_coeffs),
-                         tuple(map(float, self.joints)), float(self.joint_width))
-
     @classmethod
     def from_fit(cls, fit) -> "FitPosterior":
         """The posterior of a :class:`~.fit.RailFit` (one made before ``posterior_cov``
@@ -142,14 +136,15 @@ class FitPosterior:
             raise ValueError("the fit has no full posterior (posterior_cov): fit again with "
                              "this version of diffguide")
         keys = ("value", "prior_value", "prior_sigma_log")
+        b = fit.basis
         return cls(
-            start=float(fit.basis.start), spacing=float(fit.basis.spacing),
-            n_coeffs=int(fit.basis.n_coeffs), coeffs=np.asarray(fit.coeffs, float),
+            basis=RailBasis(float(b.start), float(b.spacing), int(b.n_coeffs),
+                            tuple(map(float, b.joints)), float(b.joint_width)),
+            coeffs=np.asarray(fit.coeffs, float),
             cov=np.asarray(fit.posterior_cov, float),
             structure={n: {k: float(v[k]) for k in keys} for n, v in fit.structure.items()},
             lead=np.asarray(fit.lead, float), lead_basis=tuple(fit.lead_basis),
-            position_range=tuple(map(float, fit.position_range)), rigid=bool(fit.rigid),
-            joints=tuple(fit.basis.joints), joint_width=float(fit.basis.joint_width))
+            position_range=tuple(map(float, fit.position_range)), rigid=bool(fit.rigid))
 
 
 @dataclasses.dataclass(frozen=True)

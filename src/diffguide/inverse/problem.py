@@ -311,9 +311,7 @@ def _problem(family: MachineFamily, meas: Measurements, basis: RailBasis, lead_B
         sigma=jnp.asarray(meas.sigma), weight=jnp.ones(meas.n), z=jnp.asarray(meas.z),
         lead=jnp.asarray(lead_B), chan=jnp.asarray(chan),
         prior_sigma=jnp.asarray(family.prior_sigma()), x_ref=jnp.asarray(float(x_ref)),
-        start=basis.start, spacing=basis.spacing, n_coeffs=basis.n_coeffs,
-        n_chan=int(chan.max()) + 1, n_q=family.n_params, joints=basis.joints,
-        joint_width=basis.joint_width,
+        basis=basis, n_chan=int(chan.max()) + 1, n_q=family.n_params,
     )
 
 

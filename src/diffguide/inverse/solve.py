@@ -3,7 +3,7 @@ Levenberg–Marquardt passes with the outlier pass and the λ re-choice (``metho
 classical linear inversion (``method="linear"``).
 
 Each LM pass minimises ``‖r(x)‖² + xᵀPx`` over the rails and nuisances at the current
-structure (:func:`.lm.levenberg_marquardt`); after it, merged values whose standardised
+structure (:class:`.lm.LevenbergMarquardt`); after it, merged values whose standardised
 residual exceeds :data:`OUTLIER_Z` get zero weight (first two passes, at most 5 % of the rows),
 the structure is estimated again when the data changed or the rails moved by more than 20 %
 (:func:`.structure_stage.structure_stage`), and λ is re-chosen; the pass is repeated when any of
@@ -16,7 +16,7 @@ import logging
 
 import numpy as np
 
-from .lm import levenberg_marquardt, spd
+from .lm import LevenbergMarquardt, spd
 from .problem import FitProblem
 from .structure_stage import structure_stage
 from .weight import WeightChoice
@@ -125,6 +125,8 @@ class _RailLinearisation:
         return np.asarray(xf, float).tobytes() + self.st.problem.weights.tobytes()
 
     def __call__(self, xc):
+        """``(r, J_c, ok, (pred, Jc))`` at the rails and nuisances ``xc`` (the linearisation
+        :class:`.lm.LevenbergMarquardt` takes; ``J_c`` the rail-and-nuisance columns)."""
         ic = self.st.problem.ic
         xf = self.st.x.copy()
         xf[ic] = xc
@@ -132,7 +134,8 @@ class _RailLinearisation:
         if len(self.recent) > 4:
             self.recent.clear()
         self.recent[self.key(xf)] = out
-        return out[0], (out[1][:, ic] if out[1] is not None else None), *out[2:]
+        r, J, pred, ok, Jc = out
+        return r, (J[:, ic] if J is not None else None), ok, (pred, Jc)
 
     def at(self, x):
         """The kept full linearisation at ``x`` (all unknowns), else a new one."""
@@ -167,11 +170,12 @@ def _lm_pass(st: FitState, linearise_c, rtol, max_steps, passes) -> None:
     ic = st.problem.ic
     r, J, pred, _, Jc = st.lin
     x0 = st.x[ic].copy()
-    xc, r, _, pred, Jc, converged, n, message = levenberg_marquardt(
-        x0, r, J[:, ic], pred, Jc, linearise_c, st.Pc, rtol, max_steps)
+    sol = LevenbergMarquardt(rtol=rtol, max_steps=max_steps).solve(
+        linearise_c, x0, st.Pc, at=(r, J[:, ic], (pred, Jc)))
+    xc, n, message = sol.value, sol.steps, sol.message
     st.x[ic] = xc
     st.steps += n
-    st.converged, st.message = converged, message
+    st.converged, st.message = sol.converged, message
     if not np.array_equal(xc, x0):  # else st.lin, taken at st.x, still holds
         st.lin = linearise_c.at(st.x)
     r = st.lin[0]

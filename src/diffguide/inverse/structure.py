@@ -106,6 +106,15 @@ class StructurePriors:
         return tuple(n for n in NAMES if getattr(self, n) is not None)
 
 
+def scaled_preload(machine, log_factor):
+    """``machine`` with the preload force per rolling element (``Carriage.preload_force``, N)
+    times ``e^log_factor`` (dimensionless, may be traced): the preload's perturbation, here for
+    :meth:`MachineFamily.machine` and for the prediction's Jacobian in the preload
+    (:func:`.posterior_sweep.perturbed_joint_errors`)."""
+    return eqx.tree_at(lambda m: m.carriage.preload_force, machine,
+                       machine.carriage.preload_force * jnp.exp(log_factor))
+
+
 def _cheb_nodes(lo: float, hi: float, n: int) -> np.ndarray:
     k = np.arange(n)
     return 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos(np.pi * (2 * k + 1) / (2 * n))[::-1]
@@ -238,9 +247,7 @@ class MachineFamily(eqx.Module):
                 m = eqx.tree_at(lambda mm: mm.table, m,
                                 scaled_table(m.table, jnp.exp(params[i])))
             else:
-                f0 = m.carriage.preload_force
-                m = eqx.tree_at(lambda mm: mm.carriage.preload_force, m,
-                                f0 * jnp.exp(params[i]))
+                m = scaled_preload(m, params[i])
         return m
 
     def values(self, params) -> dict[str, float]:

@@ -14,6 +14,7 @@ import logging
 
 import numpy as np
 
+from .._core.result import RESULTS
 from .marginal import (
     carries_information,
     laplace,
@@ -91,11 +92,14 @@ def structure_stage(problem: FitProblem, x, r, J, weights):
     c0 = problem.choose(J, r, x, weights, "ml")
     score = _MarginalScore(problem, x, weights, problem.Om_curv + c0.kappa * problem.Om_amp,
                            c0.lam)
-    q, cov, note = maximise_marginal(score, x[iq], problem.q_bounds)
+    sol = maximise_marginal(score, x[iq], problem.q_bounds)
+    q, cov = sol.value, sol.state.cov
+    note = {"iterations": sol.steps, "at_bound": list(sol.state.at_bound),
+            "message": sol.message, **sol.stats}
     p = score.parts_at(q)
     s2 = p[0] / max(p[2], 1) if p is not None else 1.0  # ŝ², the profiled noise variance
     note["noise_scale"] = float(np.sqrt(s2))
-    if s2 < 1.0 and not note["message"].startswith("the model failed"):
+    if s2 < 1.0 and not sol.ended(RESULTS.nonfinite):
         # the data scatter less than their stated σ: the profiled score would take that
         # scatter, model error included, for the noise and narrow the structure's σ; like
         # the rails' σ, it is never narrowed below what the stated σ give (module docstring)

@@ -34,6 +34,7 @@ import numpy as np
 
 from .._core.limits import MAX_MESH_DIVISIONS, check_range
 from ..guideway.rails import JOINT_WIDTH
+from ..inverse.basis import RailBasis
 from ..inverse.predict import FitPosterior
 
 FORMAT = "diffguide fit posterior 2"
@@ -69,8 +70,9 @@ def posterior_json_text(fit, meas, *, preset: str | None, config: str | None,
     data = {
         "format": FORMAT,
         "units": "SI: m, rad; structure unknowns in prior sigma of their log",
-        "knots": {"start_m": post.start, "spacing_m": post.spacing, "n": post.n_coeffs,
-                  "joints_m": list(post.joints), "joint_width_m": post.joint_width},
+        "knots": {"start_m": post.basis.start, "spacing_m": post.basis.spacing,
+                  "n": post.basis.n_coeffs, "joints_m": list(post.basis.joints),
+                  "joint_width_m": post.basis.joint_width},
         "coeffs_m": post.coeffs.tolist(),
         "cov": post.cov.tolist(),
         "structure": post.structure,
@@ -219,16 +221,18 @@ def _parse(d, path) -> tuple[FitPosterior, dict]:
     k = _field(d, "knots", dict)
     n = _int(k, "n", "knots.n", lo=1)
     joints = tuple(_numbers(k.get("joints_m", []), "knots.joints_m"))
+    basis = RailBasis(
+        float(_num(k, "start_m", "knots.start_m")),
+        float(_num(k, "spacing_m", "knots.spacing_m", positive=True)), int(n),
+        tuple(map(float, joints)),
+        float(_num(k, "joint_width_m", "knots.joint_width_m", positive=True)
+              if "joint_width_m" in k else JOINT_WIDTH))
     post = FitPosterior(
-        start=_num(k, "start_m", "knots.start_m"),
-        spacing=_num(k, "spacing_m", "knots.spacing_m", positive=True), n_coeffs=n,
-        coeffs=_matrix(d, "coeffs_m", 3), cov=_cov(d), structure=_structure(d),
+        basis=basis, coeffs=_matrix(d, "coeffs_m", 3), cov=_cov(d), structure=_structure(d),
         lead=np.asarray(_numbers(_field(d, "lead_m", list), "lead_m"), float),
         lead_basis=_lead_knots(_field(d, "lead_knots", list)),
         position_range=_range(d), rigid=_field(d, "rigid", bool),
-        x_ref=_num(d, "x_ref_m", "x_ref_m"), joints=joints,
-        joint_width=(_num(k, "joint_width_m", "knots.joint_width_m", positive=True)
-                     if "joint_width_m" in k else JOINT_WIDTH))
+        x_ref=_num(d, "x_ref_m", "x_ref_m"))
     meta = {"points_m": _points(d), "machine": _machine(d, fmt),
             "x0_mm": _num(d, "x0_mm", "x0_mm", optional=True), "warnings": warnings}
     return post, meta
