@@ -122,15 +122,11 @@ def machine_spec(args):
 
 
 def parse_mesh_text(text: str, most: int = MAX_MESH_DIVISIONS) -> tuple[int, int]:
-    """``"20x10"`` → ``(20, 10)``, each in ``1..most``; a clear ``ValueError`` otherwise."""
-    parts = str(text).lower().replace("×", "x").split("x")
-    try:
-        nx, ny = (int(v) for v in parts)
-    except ValueError:
-        raise ValueError(f"--mesh must be NXxNY with integers, e.g. 20x10, got {text!r}") from None
-    if not (1 <= nx <= most and 1 <= ny <= most):
-        raise ValueError(f"--mesh: both divisions must be in 1..{most}, got {text!r}")
-    return nx, ny
+    """``"20x10"`` → ``(20, 10)``, each in ``1..most`` (:func:`diffguide.jobs.positions.
+    parse_mesh`, the one parser of ``--mesh``)."""
+    from ..jobs.positions import parse_mesh
+
+    return parse_mesh(text, most)
 
 
 def _has(p: argparse.ArgumentParser, flag: str) -> bool:
