@@ -86,8 +86,8 @@ def test_montecarlo_job_writes_the_commands_files(root):
 
 def test_tolerance_job_writes_the_commands_json(root):
     cli, job = root / "tol_cli.json", root / "tol_job.json"
-    opts = dict(limit=3.0, probability=0.8, samples=16, check_samples=0, mesh="10x5",
-                positions="-300:300:5", chunk=16)
+    opts = dict(limit=3.0, probability=0.8, samples=32, check_samples=0, mesh="10x5",
+                positions="-300:300:5", chunk=32)
     argv = [f"--{k.replace('_', '-')}={v}" for k, v in opts.items()]
     assert main(["tolerance", *argv, "--out", str(cli), "-q"]) == 0
     res = tolerance_job(ToleranceSettings(**opts))
