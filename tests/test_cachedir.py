@@ -8,7 +8,7 @@ import pytest
 
 from diffguide._core.cachedir import IN_PROGRESS_S, entries, prune, touch
 from diffguide.cli import main
-from diffguide.cli._common import DEFAULT_CACHE_MAX_MB, cache_max_bytes
+from diffguide.cli._runtime import DEFAULT_CACHE_MAX_MB, cache_max_bytes
 
 
 def _file(path, size, age_s):

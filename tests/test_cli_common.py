@@ -9,7 +9,8 @@ import sys
 import pytest
 
 from diffguide.cli import _COMMANDS, build_parser, main
-from diffguide.cli._common import MESH_COMMANDS, cache_dir, normalise_mesh, parse_mesh_text
+from diffguide.cli._common import MESH_COMMANDS, normalise_mesh, parse_mesh_text
+from diffguide.cli._runtime import cache_dir
 
 
 def _sub(name: str) -> argparse.ArgumentParser:
@@ -93,7 +94,7 @@ def test_cache_dir_choice(monkeypatch, tmp_path):
 def test_runtime_setup_in_a_fresh_process(tmp_path):
     code = (
         "import argparse, os\n"
-        "from diffguide.cli._common import prepare_runtime\n"
+        "from diffguide.cli._runtime import prepare_runtime\n"
         "prepare_runtime(argparse.Namespace(cache_dir=None, no_cache=False))\n"
         "import jax\n"
         "print(os.environ['EQX_ON_ERROR'], jax.config.jax_compilation_cache_dir,"
@@ -125,7 +126,7 @@ def test_internal_error_exits_1_with_traceback(monkeypatch, capsys):
 
 
 def test_montecarlo_mounting_choices_match_the_library():
-    from diffguide.cli.montecarlo import MOUNTING_CHOICES
+    from diffguide.jobs.study import MOUNTING_CHOICES
     from diffguide.studies.random_rails import MOUNTING_CLASSES
 
     assert set(MOUNTING_CHOICES) == set(MOUNTING_CLASSES)
@@ -148,15 +149,15 @@ def test_the_command_passes_its_exit_status_and_messages_through_its_quick_exit(
 def test_xla_cpu_flags_only_for_measured_jaxlib_and_never_over_the_users(monkeypatch):
     from importlib.metadata import version
 
-    from diffguide.cli import _common
+    from diffguide.cli import _runtime
 
-    monkeypatch.setattr(_common, "XLA_CPU_FLAGS", {version("jaxlib"): ("--a=1", "--b=2")})
+    monkeypatch.setattr(_runtime, "XLA_CPU_FLAGS", {version("jaxlib"): ("--a=1", "--b=2")})
     monkeypatch.setenv("XLA_FLAGS", "--b=7 --c")
-    _common._set_xla_cpu_flags()
+    _runtime._set_xla_cpu_flags()
     assert os.environ["XLA_FLAGS"].split() == ["--b=7", "--c", "--a=1"]
-    monkeypatch.setattr(_common, "XLA_CPU_FLAGS", {"0.0.0": ("--a=1",)})  # another version
+    monkeypatch.setattr(_runtime, "XLA_CPU_FLAGS", {"0.0.0": ("--a=1",)})  # another version
     monkeypatch.delenv("XLA_FLAGS")
-    _common._set_xla_cpu_flags()
+    _runtime._set_xla_cpu_flags()
     assert "XLA_FLAGS" not in os.environ
 
 
@@ -168,7 +169,7 @@ def test_a_second_run_reads_its_programs_back_without_xla_log_lines(tmp_path):
     The second run's stdout shows it was read back (one file in the folder, the same bits)."""
     code = (
         "import argparse, os\n"
-        "from diffguide.cli._common import prepare_runtime\n"
+        "from diffguide.cli._runtime import prepare_runtime\n"
         "prepare_runtime(argparse.Namespace(cache_dir=None, no_cache=False))\n"
         "import jax, jax.numpy as jnp\n"
         "f = jax.jit(lambda x: jnp.sin(x) @ x + 1.0)\n"

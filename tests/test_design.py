@@ -249,7 +249,7 @@ _SHARDED = textwrap.dedent(
     import sys
     import jax, numpy as np
     jax.config.update("jax_enable_x64", True)
-    from diffguide.cli.montecarlo import split_cpu_into_devices
+    from diffguide.cli._study_options import split_cpu_into_devices
     assert split_cpu_into_devices(2)  # before the first array
     from diffguide.io.config import default_config, spec_from_config
     from diffguide.machine.build import with_overrides

@@ -62,7 +62,7 @@ if where == "gc":
             done.append(1)
             signal.raise_signal(signal.SIGINT)
     gc.callbacks.append(once)
-    _orig = __import__("diffguide.cli._common", fromlist=["x"]).prepare_runtime
+    _orig = __import__("diffguide.cli._runtime", fromlist=["x"]).prepare_runtime
     def prepare(args):
         out = _orig(args)
         gc.collect()  # a collection while the command runs: its callback raises

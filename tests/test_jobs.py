@@ -87,3 +87,19 @@ def test_importing_the_jobs_starts_neither_jax_nor_matplotlib():
     code = ("import sys, diffguide.jobs; bad = {'jax', 'matplotlib'} & set(sys.modules); "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
+
+
+def test_the_predict_job_writes_the_commands_file_byte_for_byte(both, tmp_path):
+    """On the fit above (its posterior.json): the command's prediction and the job's."""
+    from diffguide.jobs import PredictSettings, predict_job
+
+    _, fit, _, _, _ = both
+    cli, job = tmp_path / "cli.csv", tmp_path / "job.csv"
+    assert main(["predict", "--fit", str(fit), "--point", "Q:300,100", "--positions-mm",
+                 "-300:300:5", "--z-mm", "150", "--out", str(cli), "-q"]) == 0
+    res = predict_job(PredictSettings(fit=fit, point=("Q:300,100",), positions_mm="-300:300:5",
+                                      z_mm=150.0))
+    assert res.write(job) == [str(job)]
+    assert job.read_bytes() == cli.read_bytes()
+    assert res.prediction.errors.shape == (5, len(res.prediction.point_names), 6)
+    assert not res.warnings and res.machine_change is None

@@ -238,3 +238,41 @@ def test_no_process_state_outside_the_cli():
             ):
                 bad.append(f"{rel}: {needle}")
     assert not bad, bad
+
+
+#: the most lines of a module of the command line: argument parsing and printing, a screen or
+#: two; the work is the job's (diffguide.jobs)
+MAX_CLI_LINES = 250
+
+
+def _cli_commands() -> dict:
+    """``{module name: path}`` of the CLI's command modules (``diffguide.cli.X`` for X a
+    command's module; the helpers ``cli/_*.py`` and the package files are not commands)."""
+    from diffguide.cli import _COMMANDS
+
+    return {f"diffguide.cli.{m}": PACKAGE / "cli" / f"{m}.py" for m in _COMMANDS.values()}
+
+
+def test_every_public_cli_module_is_a_command():
+    """A module of cli/ without a leading underscore is a command (its helpers are private):
+    what the next test checks covers every module that could hold a command's work."""
+    public = {p.stem for p in (PACKAGE / "cli").glob("*.py")
+              if not p.name.startswith("_")}
+    assert public == {m.rsplit(".", 1)[1] for m in _cli_commands()}
+
+
+def test_no_command_imports_another_command():
+    """A command that imports another is sharing work that belongs in a job or a helper."""
+    commands = _cli_commands()
+    bad = [f"{path.relative_to(PACKAGE)}:{line}: {target}"
+           for module, path in commands.items()
+           for line, target, _ in _imports(path)
+           if target != module and any(target == c or target.startswith(c + ".")
+                                       for c in commands)]
+    assert not bad, bad
+
+
+def test_every_cli_module_is_short():
+    long = {str(p.relative_to(PACKAGE)): n for p in sorted((PACKAGE / "cli").glob("*.py"))
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_CLI_LINES}
+    assert not long, f"over {MAX_CLI_LINES} lines: {long}"

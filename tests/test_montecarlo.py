@@ -151,7 +151,7 @@ _SHARDED = textwrap.dedent(
     """
     import jax, numpy as np
     jax.config.update("jax_enable_x64", True)
-    from diffguide.cli.montecarlo import split_cpu_into_devices
+    from diffguide.cli._study_options import split_cpu_into_devices
     from diffguide.studies.montecarlo import batched_sweep
     assert split_cpu_into_devices(2)  # before the first array
     from diffguide.machine.majda2012 import majda2012_machine
@@ -183,7 +183,7 @@ def test_sharded_over_two_cpu_devices(tmp_path):
 
 
 def test_split_cpu_is_a_no_op_once_jax_runs(machine):
-    from diffguide.cli.montecarlo import split_cpu_into_devices
+    from diffguide.cli._study_options import split_cpu_into_devices
 
     before = os.environ.get("XLA_FLAGS")
     assert split_cpu_into_devices(2) is False  # the backends are up: too late, nothing changed

@@ -4,7 +4,7 @@ A wrong Jacobian is silent (a wrong fit), and a compiler that miscompiles the ``
 the implicit solve now and then would show as two fresh compilations that disagree. So this test
 compiles the full fit Jacobian in two fresh processes and requires them to agree
 (test_inverse.py compares it with central differences); the second process compiles with the
-command line's XLA flags for the installed jaxlib (``cli._common.XLA_CPU_FLAGS``), so these are
+command line's XLA flags for the installed jaxlib (``cli._runtime.XLA_CPU_FLAGS``), so these are
 held to the same Jacobian.
 """
 
@@ -16,7 +16,7 @@ import sys
 
 import numpy as np
 
-from diffguide.cli._common import XLA_CPU_FLAGS
+from diffguide.cli._runtime import XLA_CPU_FLAGS
 
 _JACOBIAN = r"""
 import json, sys

@@ -3,7 +3,7 @@
 Each command lives in its own module exposing ``add_parser(subparsers)`` (which registers the
 sub-command and sets ``func``); :mod:`._common` adds the flags all commands share. Parsing
 imports neither JAX nor matplotlib (``--help`` and ``--version`` answer at once); the command
-then sets up JAX (float64, the compilation cache, see :func:`._common.prepare_runtime`).
+then sets up JAX (float64, the compilation cache, see :func:`._runtime.prepare_runtime`).
 """
 
 import argparse
@@ -21,10 +21,10 @@ from ._common import (
     HelpFormatter,
     add_common_arguments,
     normalise_mesh,
-    prepare_runtime,
 )
 from ._interrupt import EXIT_INTERRUPTED
 from ._outputs import check_outputs
+from ._runtime import prepare_runtime
 
 #: command -> its module in diffguide.cli
 _COMMANDS = {

@@ -8,7 +8,8 @@ import sys
 import numpy as np
 
 from ._common import add_machine_arguments
-from .montecarlo import add_study_arguments, check_study, split_cpu_into_devices
+from ..jobs.study import check_study
+from ._study_options import add_study_arguments, split_cpu_into_devices
 
 # diffguide.studies.design_space.VARIABLES / CONSTRAINTS, named here so that --help imports no
 # JAX (tests/test_design.py checks they agree): name -> (user unit, SI per user unit)
@@ -249,8 +250,10 @@ def run(args) -> int:
     from ..studies.design import design, parse_objective
     from ..studies.design_space import parse_constraint
     from ._common import machine_config
-    from .montecarlo import _KERNELS, _PLANES
-    from .simulate import default_positions, parse_mesh, parse_positions
+    from ..jobs.positions import default_positions, parse_positions
+    from ..jobs.study import KERNELS as _KERNELS
+    from ..jobs.study import PLANES as _PLANES
+    from ._common import parse_mesh_text as parse_mesh
 
     objective = parse_objective(args.objective)  # malformed input fails before any solve
     if objective.measure != "plan" and args.work_point is not None:

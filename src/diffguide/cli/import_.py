@@ -1,10 +1,10 @@
 """``diffguide import``: measurement files in any supported layout, or read through a profile,
--> one canonical long CSV (``--explain``: what was read, and how)."""
+-> one canonical long CSV (``--explain``: what was read, and how); the work is
+:func:`diffguide.jobs.import_job`."""
 
 import argparse
 import sys
 
-from ..jobs.inputs import load_profile_args
 from ._common import PRESETS
 from ._input_options import add_input_options
 
@@ -57,96 +57,35 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
-def explain_lines(infos) -> list[str]:
-    """``--explain``'s lines, one block per file."""
-    out = []
-    for info in infos:
-        out.append(f"{info['file']}:")
-        out.append(f"  layout: {info.get('layout')}; encoding: {info.get('encoding')}; "
-                   f"separator: {info.get('separator')!r}; decimal mark: "
-                   f"{info.get('decimal')!r}")
-        if info.get("metadata"):
-            out.append("  metadata: " + "; ".join(f"{k} = {v}" for k, v in
-                                                  info["metadata"].items()))
-        if info.get("header"):
-            out.append(f"  header (line {info['header_line']}): {', '.join(info['header'])}")
-        for block in info.get("blocks", []):
-            out.append(f"  block {block}")
-        if info.get("position_column"):
-            out.append(f"  positions: column {info['position_column']!r}")
-        for col, what in info.get("columns", {}).items():
-            shown = ", ".join(what[:4]) + (f" (+{len(what) - 4} more)" if len(what) > 4 else "")
-            out.append(f"  column {col!r} -> {shown}")
-        if info.get("channels"):
-            out.append(f"  channels: {', '.join(info['channels'])}")
-        out.append(f"  x0 = {info['x0_mm']:g} mm ({info['x0_source']})")
-        read = [f"{info['readings']} readings" if "readings" in info else "",
-                f"{info['rows']} table rows" if "rows" in info else "",
-                f"{info['missing_cells']} empty cells (missing readings)"
-                if info.get("missing_cells") else "",
-                f"lines skipped: {', '.join(map(str, info['lines_skipped'][:10]))}"
-                if info.get("lines_skipped") else "",
-                f"sections skipped: {', '.join(info['blocks_skipped'][:6])}"
-                if info.get("blocks_skipped") else ""]
-        out.append("  " + "; ".join(r for r in read if r))
-    return out
+def settings_from_args(args):
+    """The :class:`diffguide.jobs.ImportSettings` of the parsed options (checked there)."""
+    from ..jobs import ImportSettings
 
-
-def draft(args) -> int:
-    """``--draft-profile``: the draft of FILE's profile, written atomically (refused over an
-    existing file unless ``--overwrite-draft``); what is left to write, on the console."""
-    from ..io.profile_draft import draft_profile, write_draft
-
-    if len(args.input) != 1 or args.profile or args.out:
-        raise ValueError("--draft-profile drafts one FILE's profile (without --profile and "
-                         "--out); then read it: --profile OUT.toml")
-    points = None
-    if args.config or args.preset:
-        from ._common import machine_config
-
-        points = machine_config(args)["points"]
-    text, todo = draft_profile(args.input[0], args.encoding, points)
-    write_draft(args.draft_profile, text, args.overwrite_draft)
-    if not args.quiet:
-        left = (f"{len(todo)} line(s) marked REQUIRED to complete: {', '.join(todo)}" if todo
-                else "nothing marked REQUIRED; confirm the lines marked CHECK")
-        print(f"wrote {args.draft_profile}: draft profile for {args.input[0]}; {left}; then: "
-              f"diffguide import {args.input[0]} --profile {args.draft_profile} --explain")
-    return 0
+    return ImportSettings(**{k: getattr(args, k) for k in ImportSettings.fields()
+                             if hasattr(args, k)})
 
 
 def run(args) -> int:
-    from ..io.atomic import atomic_write_text
-    from ..io.importers import format_long, import_many
-    from ..io.measurements import merge_readings
+    from ..jobs import import_job
 
-    if args.draft_profile is not None:
-        return draft(args)
-    if args.out is None and not args.explain:
-        raise ValueError("diffguide import: --out FILE.csv is required (or --explain)")
-    notes: list[str] = []
-    infos: list[dict] = []
-    readings = import_many(args.input, args.layout, args.x0_mm, notes, infos,
-                           profile=load_profile_args(args, args.input), encoding=args.encoding)
-    for info in infos:
-        mine = [r for r in readings if r.source == info["file"]]
-        info["readings"] = len(mine)
-        info["channels"] = sorted({f"{r.quantity} at {r.point} ({r.instrument})" for r in mine})
-    source = ", ".join(args.input)
-    meas = merge_readings(readings, source=source, notes=notes,  # validates what fit sees
-                          allow_many_positions=args.allow_many_positions,
-                          allow_conflicts=args.accept_file_conflicts)
+    res = import_job(settings_from_args(args))
+    if res.draft is not None:  # --draft-profile: what is left to write, on the console
+        path, = res.write()
+        if not args.quiet:
+            todo = res.todo
+            left = (f"{len(todo)} line(s) marked REQUIRED to complete: {', '.join(todo)}"
+                    if todo else "nothing marked REQUIRED; confirm the lines marked CHECK")
+            print(f"wrote {path}: draft profile for {args.input[0]}; {left}; then: "
+                  f"diffguide import {args.input[0]} --profile {path} --explain")
+        return 0
     if args.explain:
-        print("\n".join(explain_lines(infos)))
-    if args.out is not None:
-        x0 = "; ".join(f"{i['file']}: x0 = {i['x0_mm']:g} mm" for i in infos)
-        text = format_long(readings, comment=f"imported from {source} by diffguide import\n"
-                                             f"positions are table positions x ({x0})")
-        atomic_write_text(args.out, text)
+        print("\n".join(res.explain_lines()))
+    res.write()
     if not args.quiet:
-        for n in notes:
+        for n in res.notes:
             print(f"diffguide import: note: {n}", file=sys.stderr)
-        print(f"{'wrote ' + args.out if args.out else 'read'}: {len(readings)} readings from "
+        meas = res.measurements
+        print(f"{'wrote ' + args.out if args.out else 'read'}: {len(res.readings)} readings from "
               f"{len(args.input)} file(s) ({meas.n} merged rows in {len(meas.channels)} "
               "channels)")
     return 0

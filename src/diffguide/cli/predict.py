@@ -1,9 +1,9 @@
-"""``diffguide predict``: the joint errors, with σ, at any points of the table from a fit."""
+"""``diffguide predict``: the joint errors, with σ, at any points of the table from a fit;
+the work is :func:`diffguide.jobs.predict_job`."""
 
 import argparse
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -67,142 +67,24 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
-def _points(args) -> dict:
-    """The points ``{name: (x, y)}`` (m) of ``--point`` and ``--points``."""
-    from ..io.prediction_csv import parse_point, read_points_file
+def settings_from_args(args):
+    """The :class:`diffguide.jobs.PredictSettings` of the parsed options (checked there)."""
+    from ..jobs import PredictSettings
 
-    pts: dict = {}
-    for text in args.point:
-        name, xy = parse_point(text)
-        if name in pts:
-            raise ValueError(f"--point {name!r} given twice")
-        pts[name] = xy
-    if args.points:
-        for name, xy in read_points_file(args.points).items():
-            if name in pts:
-                raise ValueError(f"{args.points}: point {name!r} is also given by --point")
-            pts[name] = xy
-    if not pts and not args.grid:
-        raise ValueError("give at least one point: --point NAME:X_MM,Y_MM or --points FILE.csv "
-                         "(or --grid NXxNY)")
-    if pts and args.grid:
-        raise ValueError("give --grid or --point/--points, not both")
-    return pts
-
-
-def parse_grid(text: str, n_positions: int) -> tuple[int, int]:
-    """``--grid NXxNY`` → ``(NX, NY)``, checked (:func:`~diffguide.inverse.error_map.check_grid`);
-    a ``ValueError`` naming the option and the value."""
-    from ..inverse.error_map import check_grid
-
-    nx, sep, ny = str(text).strip().lower().partition("x")
-    if not (sep and nx.strip().isdigit() and ny.strip().isdigit()):
-        raise ValueError(f"--grid must be NXxNY with whole numbers (e.g. 21x11), got {text!r}")
-    try:
-        return check_grid((int(nx), int(ny)), n_positions)
-    except ValueError as exc:
-        raise ValueError(f"--grid {text}: {exc}") from None
-
-
-def _positions(args, post) -> np.ndarray:
-    """The table positions (m): ``--positions-mm``, ``--positions`` or the measured range."""
-    from ..io.prediction_csv import read_positions_file
-    from .simulate import parse_positions
-
-    if args.positions_mm and args.positions_file:
-        raise ValueError("give --positions-mm or --positions, not both")
-    if args.positions_file:
-        return read_positions_file(args.positions_file)
-    if args.positions_mm:
-        try:
-            return parse_positions(args.positions_mm)
-        except ValueError as exc:
-            raise ValueError(str(exc).replace("--positions", "--positions-mm")) from None
-    return np.linspace(*post.position_range, 71)
-
-
-def _positions_option(args) -> str:
-    """The option that gave the positions, with its value, for a message."""
-    if args.positions_file:
-        return f"--positions {args.positions_file}"
-    return f"--positions-mm {args.positions_mm}" if args.positions_mm else "the measured range"
-
-
-def _machine_spec(args, meta: dict):
-    """The fitted machine's specification, its builder for ``predict`` (``None`` for the
-    plate; :func:`diffguide.jobs.machine.machine_builder`) and a note of what changed in
-    it since the fit (None: nothing): the fit's machine file or preset, refused where it
-    changed unless ``--accept-machine-change``."""
-    from ..io.config import default_config, load_config, spec_from_config
-    from ..io.fit_posterior import machine_changes
-    from ..jobs.machine import machine_builder
-
-    m = meta["machine"]
-    what = f"machine file {m['config']}" if m.get("config") else f"preset {m['preset']}"
-    cfg = load_config(m["config"]) if m.get("config") else default_config()
-    changes = machine_changes(meta, cfg)
-    note = None
-    if changes:
-        note = f"the {what} changed since the fit: " + "; ".join(changes)
-        if not args.accept_machine_change:
-            raise ValueError(f"{note}. The fit's posterior belongs to the machine it was fitted "
-                             "with: fit again, or give --accept-machine-change to predict "
-                             "with the changed machine anyway")
-        warn(f"{note} (predicting anyway: --accept-machine-change)")
-    return spec_from_config(cfg), machine_builder(cfg, m.get("nx"), m.get("ny")), note
+    return PredictSettings(**{k: getattr(args, k) for k in PredictSettings.fields()
+                              if hasattr(args, k)})
 
 
 def run(args) -> int:
-    from ..inverse.error_map import error_map
-    from ..inverse.predict import check_size, predict
-    from ..io.atomic import atomic_write_text
-    from ..io.fit_posterior import read_fit_posterior
-    from ..io.prediction_csv import prediction_csv_text
+    from ..jobs import predict_job
 
     t0 = time.perf_counter()
-    if not (np.isfinite(args.z_mm) and -500.0 <= args.z_mm <= 2000.0):
-        raise ValueError(f"--z-mm must be in [-500, 2000] mm, got {args.z_mm:g}")
-    post, meta = read_fit_posterior(args.fit)
-    for line in meta["warnings"]:
-        warn(line)
-    points = _points(args)
-    x = _positions(args, post)
-    check_size(len(x), len(set(points) | set(meta["points_m"])), post.cov.shape[0],
-               _positions_option(args))
-    spec, make_machine, changed = _machine_spec(args, meta)
-    m = meta["machine"]
-    kw = dict(measured_points=meta["points_m"], nx=m.get("nx"), ny=m.get("ny"),
-              extrapolate=args.extrapolate, z=args.z_mm * 1e-3)
-    if args.grid_plot and not args.grid:
-        raise ValueError("--grid-plot needs --grid NXxNY")
-    if args.grid:
-        if make_machine is not None:
-            raise ValueError("--grid: the table is imported (a reduced matrix): it knows only "
-                             "its retained nodes; predict there with --point/--points")
-        pred = error_map(post, spec, parse_grid(args.grid, len(x)), x, **kw)
-    else:
-        pred = predict(post, spec, points, x, make_machine=make_machine, **kw)
-    src = f"from the fit in {Path(args.fit).resolve()}" + (
-        f"; WARNING: {changed} (--accept-machine-change)" if changed else "")
-    atomic_write_text(args.out, prediction_csv_text(pred, src, meta.get("x0_mm")))
-    if args.grid_plot:
-        _grid_plot(args, pred)
-    _summary(args, pred, time.perf_counter() - t0)
+    res = predict_job(settings_from_args(args), warn=warn)
+    written = res.write(args.out)
+    for path in written[1:]:
+        say(args, f"wrote {path}")
+    _summary(args, res.prediction, time.perf_counter() - t0)
     return 0
-
-
-def _grid_plot(args, pred) -> None:
-    """``--grid-plot``: the errors and σ over the table top at the last position."""
-    from ..io.atomic import atomic_savefig
-    from ..plotting import figure_of
-    from ..plotting.errors import plot_error_map
-
-    err, sig = pred.user_units()
-    fig = figure_of(plot_error_map(
-        pred.points_xy, pred.grid_shape, err[-1], sig[-1],
-        f"errors over the table top at x = {pred.positions[-1] * 1e3:g} mm (1σ below)"))
-    atomic_savefig(fig, args.grid_plot, dpi=100)
-    say(args, f"wrote {args.grid_plot}")
 
 
 def _summary(args, pred, seconds: float) -> None:
