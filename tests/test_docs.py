@@ -132,3 +132,24 @@ def test_the_changelog_is_kept_by_release():
         assert newest in following | {current}, f"Unreleased {newest} after version {version}"
     else:
         assert newest == current, f"newest release {newest}, version {version}"
+
+
+def test_the_machine_file_key_list_is_the_schemas():
+    """docs/file-formats.md's list of machine-file keys is what ``docs/config_keys.py`` writes
+    from the table that validation, ``diffguide config`` and ``--explain`` read
+    (:mod:`diffguide.io.config_spec`), so it cannot drift from them; and every key a default
+    configuration holds is listed (read here from the configuration, not the table)."""
+    import importlib.util
+
+    from diffguide.io.config import default_config
+
+    spec = importlib.util.spec_from_file_location("config_keys", ROOT / "docs" / "config_keys.py")
+    writer = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(writer)
+    assert writer.main(["--check"]) == 0, "docs/file-formats.md is stale: docs/config_keys.py"
+    page = (ROOT / "docs" / "file-formats.md").read_text(encoding="utf-8")
+    block = page.split(writer.BEGIN, 1)[1].split(writer.END, 1)[0]
+    for section, body in default_config().items():
+        if isinstance(body, dict) and section not in ("points", "export"):
+            for key in body:
+                assert f"| `{key}` |" in block, f"[{section}] {key}"
