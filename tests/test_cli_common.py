@@ -126,9 +126,10 @@ def test_internal_error_exits_1_with_traceback(monkeypatch, capsys):
 
 def test_montecarlo_mounting_choices_match_the_library():
     from diffguide.cli.montecarlo import MOUNTING_CHOICES
+    from diffguide.jobs.study import MOUNTING_CHOICES as STUDY_CHOICES
     from diffguide.studies.random_rails import MOUNTING_CLASSES
 
-    assert set(MOUNTING_CHOICES) == set(MOUNTING_CLASSES)
+    assert set(MOUNTING_CHOICES) == set(MOUNTING_CLASSES) == set(STUDY_CHOICES)
 
 
 def test_the_command_passes_its_exit_status_and_messages_through_its_quick_exit(tmp_path):
