@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 from diffguide.cli import main
-from diffguide.cli.design import CONSTRAINT_UNITS, VARIABLE_UNITS, parse_vary
 from diffguide.io.config import default_config, spec_from_config
+from diffguide.jobs.design import CONSTRAINT_UNITS, VARIABLE_UNITS, parse_vary
 from diffguide.machine.build import build_machine, with_overrides
 from diffguide.studies.design import (
     Objective,

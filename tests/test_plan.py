@@ -333,9 +333,10 @@ def test_cli_writes_the_plan_and_refuses_bad_input(tmp_path, capsys):
 
 
 def test_the_cli_offers_what_the_planner_models():
-    """``diffguide plan`` keeps its own table of who reads what (the parser must not import
-    JAX); it is the planner's :data:`~diffguide.planning.KINDS`, kind for kind."""
-    from diffguide.cli.plan import QUANTITY_CHOICES
+    """``diffguide plan`` and its settings keep their own table of who reads what (the parser
+    and the settings' checks must not import JAX); it is the planner's
+    :data:`~diffguide.planning.KINDS`, kind for kind."""
+    from diffguide.jobs.plan import KIND_READS
     from diffguide.planning import KINDS
 
-    assert QUANTITY_CHOICES == KINDS
+    assert KIND_READS == KINDS

@@ -1,20 +1,11 @@
-"""``diffguide plan``: where to put the instruments so that the data determine the rails."""
+"""``diffguide plan``: where to put the instruments so that the data determine the rails
+(:func:`diffguide.jobs.plan_job` does the work; this module parses and prints)."""
 
 import argparse
-import json
 import time
 
-import numpy as np
-
+from ..jobs.plan import CRITERIA, KIND_READS
 from ._common import say
-
-#: What each kind reads: :data:`diffguide.planning.KINDS`, restated so that parsing the
-#: command line does not import JAX (a test asserts they agree).
-QUANTITY_CHOICES = {
-    "level": ("EBX", "EAX"),
-    "interferometer": ("EBX", "ECX"),
-    "straightness": ("EYX", "EZX"),
-}
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -86,9 +77,9 @@ def _add_instrument_arguments(p) -> None:
         )
         p.add_argument(
             f"--{kind}-reads",
-            default=",".join(QUANTITY_CHOICES[kind]),
+            default=",".join(KIND_READS[kind]),
             metavar="Q[,Q]",
-            help=f"what one {kind} reads, among {','.join(QUANTITY_CHOICES[kind])} (default both)",
+            help=f"what one {kind} reads, among {','.join(KIND_READS[kind])} (default both)",
         )
 
 
@@ -143,7 +134,7 @@ def _add_experiment_arguments(p) -> None:
     )
     p.add_argument(
         "--criterion",
-        choices=("worst", "A", "D", "work"),
+        choices=CRITERIA,
         default="worst",
         help="worst: largest profile σ (default); A: RMS profile σ; D: log det of "
         "the posterior covariance; work: largest σ of the errors at --work-point",
@@ -196,245 +187,19 @@ def _add_structure_arguments(p) -> None:
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
 
 
-def _table_mm(cfg) -> tuple[float, float]:
-    return cfg["table"]["length_mm"], cfg["table"]["width_mm"]
+def settings_from_args(args):
+    """The :class:`diffguide.jobs.PlanSettings` of the parsed options (checked there)."""
+    from ..jobs import PlanSettings
 
-
-def _sites(args, cfg) -> dict:
-    """Candidate sites ``{name: (x, y)}`` (m): ``--sites`` or the ``--grid``."""
-    from ..planning.instruments import grid_sites
-    from ..io.plan_files import read_sites
-    from ._common import parse_mesh_text
-
-    if args.sites:
-        return read_sites(args.sites, _table_mm(cfg))
-    if cfg.get("table_source"):  # an imported table knows only its retained points
-        from ..io.table_source import retained_points
-
-        return retained_points(cfg)
-    try:
-        nx, ny = parse_mesh_text(args.grid, most=400)
-    except ValueError:
-        raise ValueError(
-            f"--grid must be NXxNY with integers >= 1, e.g. 7x3, got {args.grid!r}"
-        ) from None
-    if nx * ny > 400:
-        raise ValueError(f"--grid {args.grid}: at most 400 sites")
-    return grid_sites(cfg["table"]["length_mm"] * 1e-3, cfg["table"]["width_mm"] * 1e-3, nx, ny)
-
-
-def _start_and_compare(args, cfg, sites):
-    """``--start`` and the plan to compare with (``--compare``; by default the ``--start`` plan
-    where given, else the bundled layout) as ``(kind, site)``, adding their sites to ``sites``
-    where new."""
-    from ..io.plan_files import read_placements
-
-    table = _table_mm(cfg)
-    start = [] if args.start is None else read_placements(args.start, "--start", table, sites)
-    which = args.compare if args.compare is not None else (args.start or "bundled")
-    compare = None if which == "none" else read_placements(which, "--compare", table, sites)
-    return start, compare
-
-
-def parse_work_point(text: str, table_mm) -> tuple[float, float]:
-    """``--work-point X,Y`` (mm), checked to lie on the ``table_mm = (length, width)`` top."""
-    from ..planning.instruments import check_on_table
-
-    try:
-        wx, wy = (float(v) for v in text.split(","))
-    except ValueError:
-        raise ValueError(f"--work-point must be X,Y (mm), got {text!r}") from None
-    check_on_table("work point", wx, wy, table_mm, "--work-point")
-    return wx, wy
-
-
-def _work_point(args, cfg, sites):
-    """``("WORK", quantities)`` from ``--work-point``/``--work-reads`` (the site added to
-    ``sites``), or None."""
-    if args.work_point is None:
-        return None
-    wx, wy = parse_work_point(args.work_point, _table_mm(cfg))
-    wq = tuple(q.strip().upper() for q in args.work_reads.split(","))
-    bad = [q for q in wq if q not in ("EYX", "EZX", "EAX", "EBX", "ECX")]
-    if bad or not wq:
-        raise ValueError(f"--work-reads must be among EYX,EZX,EAX,EBX,ECX, got {args.work_reads!r}")
-    sites["WORK"] = (wx * 1e-3, wy * 1e-3)
-    return ("WORK", wq)
-
-
-def _instruments(args):
-    from ..planning import Instrument
-
-    out = []
-    for kind, count, sig, reads in (
-        ("level", args.levels, args.level_sigma_urad * 1e-6, args.level_reads),
-        (
-            "interferometer",
-            args.interferometers,
-            args.interferometer_sigma_urad * 1e-6,
-            args.interferometer_reads,
-        ),
-        (
-            "straightness",
-            args.straightness,
-            args.straightness_sigma_um * 1e-6,
-            args.straightness_reads,
-        ),
-    ):
-        if not 0 <= count <= 50:
-            raise ValueError(f"the number of {kind}s must be in [0, 50], got {count}")
-        if not (np.isfinite(sig) and sig > 0):
-            raise ValueError(f"the {kind} reading σ must be > 0, got {sig * 1e6:g}")
-        q = tuple(s.strip().upper() for s in reads.split(",") if s.strip())
-        bad = [x for x in q if x not in QUANTITY_CHOICES[kind]]
-        if not q or bad:
-            raise ValueError(
-                f"--{kind}-reads: a {kind} reads "
-                f"{' and/or '.join(QUANTITY_CHOICES[kind])}, got {reads!r}"
-            )
-        out.append(Instrument(kind, count, q, sig))
-    if sum(i.count for i in out) == 0:
-        raise ValueError(
-            "no instruments to place (--levels, --interferometers, --straightness are all 0)"
-        )
-    return out
-
-
-def _check(args):
-    if not 4 <= args.positions <= 1000:
-        raise ValueError(f"--positions must be in [4, 1000], got {args.positions}")
-    if not 1 <= args.runs <= 1000:
-        raise ValueError(f"--runs must be in [1, 1000], got {args.runs}")
-    if not (np.isfinite(args.rail_rms_um) and 0 < args.rail_rms_um <= 1000):
-        raise ValueError(f"--rail-rms-um must be in (0, 1000] µm, got {args.rail_rms_um}")
-    if not 1 <= args.draws <= 100:
-        raise ValueError(f"--draws must be in [1, 100], got {args.draws}")
-    if args.criterion == "work" and args.work_point is None:
-        raise ValueError("--criterion work needs --work-point X,Y (mm)")
-
-
-def _family(args, cfg, spec, sites, n_candidates, instruments):
-    """The machine family over ``sites`` (structure unknown as ``diffguide fit`` has it, or as
-    the options say) and its priors, after a line saying what is planned."""
-    from ..inverse import MachineFamily
-    from ..jobs.machine import config_machine
-    from ..jobs.fit import structure_priors
-
-    priors = structure_priors(
-        argparse.Namespace(
-            structure=args.structure,
-            criterion=None,
-            thickness_prior_mm=args.thickness_prior_mm,
-            preload_prior=args.preload_prior,
-            stiffness_prior=args.stiffness_prior,
-        ),
-        cfg,
-    )
-
-    def make_machine(**kw):
-        return config_machine(cfg, nx=args.nx, ny=args.ny, points=sites, **kw)
-
-    kinds = ", ".join(
-        f"{i.count} {i.kind}(s) reading {'+'.join(i.quantities)}" for i in instruments if i.count
-    )
-    say(
-        args,
-        f"plan: {n_candidates} candidate sites, {kinds}"
-        f"; {args.positions} positions x {args.runs} runs"
-        + ("" if args.unidirectional else " x 2 directions"),
-    )
-    return MachineFamily.build(make_machine, priors, progress=lambda t: say(args, t)), priors
+    return PlanSettings(**{k: getattr(args, k) for k in PlanSettings.fields() if hasattr(args, k)})
 
 
 def run(args) -> int:
-    from ..planning import plan
-    from ..io.config import spec_from_config
-    from ..io.plan_files import plan_csv, plan_report
-    from ._common import machine_config
-    from ._outputs import write_dir
-    from ..io.report_text import jsonable as _jsonable
+    from ..jobs import plan_job
+    from ._interrupt import checkpoint
 
     t_start = time.perf_counter()
-    _check(args)
-    cfg = machine_config(args)
-    spec = spec_from_config(cfg)
-    instruments = _instruments(args)
-    sites = _sites(args, cfg)
-    candidates = tuple(sites)
-    start, compare = _start_and_compare(args, cfg, sites)
-    used = {k for k, _ in (compare or []) + start}
-    instruments = [i for i in instruments if i.count > 0 or i.kind in used]
-    work = _work_point(args, cfg, sites)
-    family, priors = _family(args, cfg, spec, sites, len(candidates), instruments)
-    half = cfg["machine"]["stroke_mm"] / 2
-    result = plan(
-        family,
-        np.linspace(-half, half, args.positions) * 1e-3,
-        instruments=instruments,
-        criterion=args.criterion,
-        compare=compare,
-        start=start,
-        rail_rms=args.rail_rms_um * 1e-6,
-        runs=args.runs,
-        bidirectional=not args.unidirectional,
-        candidates=candidates,
-        work_point=work,
-        progress=lambda t: say(args, t),
-        n_draws=args.draws,
-    )
-    say(
-        args,
-        f"plan: worst profile σ {result.best.worst * 1e6:.3f} µm"
-        + (f" (your plan: {result.compare.worst * 1e6:.3f} µm)" if compare else "")
-        + f", prior only {result.prior.worst * 1e6:.3f} µm; {result.seconds:.1f} s",
-    )
-    settings = {
-        "command": "diffguide plan",
-        "preset": None if args.config else args.preset,
-        "config": args.config,
-        "mesh": args.mesh,  # None: the machine's default table mesh
-        "rail_rms_um": args.rail_rms_um,
-        "positions": args.positions,
-        "runs": args.runs,
-        "directions": 1 if args.unidirectional else 2,
-        "structure": "estimate" if priors.active() else "fixed",
-        "draws": args.draws,
-    }
-    report = plan_report(result, sites, start, compare, settings)
-    files = {"plan.csv": plan_csv(result)}
-    if not args.no_plots:
-        files.update(_figures(result, cfg, compare))
-    report["total_seconds"] = time.perf_counter() - t_start
-    files["report.json"] = json.dumps(_jsonable(report), indent=1, allow_nan=False) + "\n"
-    write_dir(args, "plan", files)
-    say(args, f"wrote {args.out}/ ({', '.join(files)}) in {time.perf_counter() - t_start:.1f} s")
+    res = plan_job(settings_from_args(args), progress=lambda t: say(args, t))
+    written = res.write(args.out, checkpoint=checkpoint)
+    say(args, f"wrote {args.out}/ ({', '.join(written)}) in {time.perf_counter() - t_start:.1f} s")
     return 0
-
-
-def _figures(result, cfg, compare):
-    from ..plotting import figure_of
-    from ..plotting.plan import plot_plan_sigma, plot_plan_sites
-
-    ax = plot_plan_sites(
-        result.sites,
-        result.candidates,
-        result.placements,
-        compare=compare or (),
-        table_mm=(cfg["table"]["length_mm"], cfg["table"]["width_mm"]),
-        rails_y_mm=cfg["guideway"]["rail_y_mm"],
-        carriages_x_mm=cfg["guideway"]["carriage_x_mm"],
-        title=f"measurement plan ({result.criterion}): worst profile σ "
-        f"{result.best.worst * 1e6:.2f} µm"
-        + (f", your plan {result.compare.worst * 1e6:.2f} µm" if compare else ""),
-    )
-    sig = {"plan": result.best.sigma}
-    if compare:
-        sig["your plan"] = result.compare.sigma
-    sig["prior only"] = result.prior.sigma
-    axes = plot_plan_sigma(
-        result.best.s,
-        sig,
-        background=("prior only",),
-        title="predicted σ of the rail profiles (mean and common slope removed)",
-    )
-    return {"plan.png": figure_of(ax), "sigma.png": figure_of(axes)}

@@ -11,10 +11,16 @@ files; the command line, notebooks and tests call the same functions.
 - :func:`tolerance_job` (:class:`ToleranceSettings` -> :class:`ToleranceResult`):
   ``diffguide tolerance``.
 - :func:`import_job` (:class:`ImportSettings` -> :class:`ImportResult`): ``diffguide import``.
+- :func:`plan_job` (:class:`PlanSettings` -> :class:`PlanResult`): ``diffguide plan``.
+- :func:`design_job` (:class:`DesignSettings` -> :class:`DesignJobResult`): ``diffguide
+  design``.
 
 Nothing heavy (JAX, matplotlib) is imported until a job runs.
 """
 
+from .design import DesignJobResult as DesignJobResult
+from .design import DesignSettings as DesignSettings
+from .design import design_job as design_job
 from .fit import FitResult as FitResult
 from .fit import FitSettings as FitSettings
 from .fit import fit_job as fit_job
@@ -24,6 +30,9 @@ from .importing import import_job as import_job
 from .montecarlo import MontecarloResult as MontecarloResult
 from .montecarlo import MontecarloSettings as MontecarloSettings
 from .montecarlo import montecarlo_job as montecarlo_job
+from .plan import PlanResult as PlanResult
+from .plan import PlanSettings as PlanSettings
+from .plan import plan_job as plan_job
 from .predict import PredictResult as PredictResult
 from .predict import PredictSettings as PredictSettings
 from .predict import predict_job as predict_job
@@ -35,10 +44,28 @@ from .tolerance import ToleranceSettings as ToleranceSettings
 from .tolerance import tolerance_job as tolerance_job
 
 __all__ = [
-    "FitResult", "FitSettings", "fit_job",
-    "ImportResult", "ImportSettings", "import_job",
-    "MontecarloResult", "MontecarloSettings", "montecarlo_job",
-    "PredictResult", "PredictSettings", "predict_job",
-    "SimulateResult", "SimulateSettings", "simulate_job",
-    "ToleranceResult", "ToleranceSettings", "tolerance_job",
+    "DesignJobResult",
+    "DesignSettings",
+    "design_job",
+    "FitResult",
+    "FitSettings",
+    "fit_job",
+    "ImportResult",
+    "ImportSettings",
+    "import_job",
+    "MontecarloResult",
+    "MontecarloSettings",
+    "montecarlo_job",
+    "PlanResult",
+    "PlanSettings",
+    "plan_job",
+    "PredictResult",
+    "PredictSettings",
+    "predict_job",
+    "SimulateResult",
+    "SimulateSettings",
+    "simulate_job",
+    "ToleranceResult",
+    "ToleranceSettings",
+    "tolerance_job",
 ]
